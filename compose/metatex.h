@@ -1,0 +1,66 @@
+// FBPB meta-texture (thesis §3.4.4, DESIGN §4.1): per material texel, the integer offset to
+// its feature's centroid, the binary feature mask d and the soft feature map f. Offsets are
+// computed on the torus, so a feature split across the tile edge is one feature and every
+// piece points at the same centroid.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "compose/image.h"
+#include "vt/result.h"
+
+namespace tvt {
+
+// Feature labels on a square, tileable texture: -1 = background, 0..count-1 = feature id.
+struct FeatureLabels {
+  int resolution = 0;
+  std::vector<int32_t> labels;
+  uint32_t count = 0;
+};
+
+struct IsolationOptions {
+  enum class Channel { Luminance, Height };
+  Channel channel = Channel::Height;
+  double threshold = -1.0;        // in [0,1]; < 0: automatic (Otsu's method)
+  bool invert = false;            // features are the dark side
+  uint32_t min_feature_texels = 8;  // components smaller than this are specks and dropped
+  uint32_t erode_texels = 0;      // optional erosion before labelling, splits touching features
+};
+
+// Automatic isolation: threshold, then connected components (4-connected) on the torus.
+FeatureLabels isolate_features(const ImageRGBA8& albedo, const IsolationOptions& options);
+// A hand-made mask (non-zero = feature): connected components on the torus, specks dropped.
+FeatureLabels labels_from_mask(const ImageGray8& mask, uint32_t min_feature_texels);
+
+struct MetaTexel {
+  int16_t dx = 0;         // offset to the feature centroid, material texels (0 if d == 0)
+  int16_t dy = 0;
+  uint8_t d = 0;          // 1 inside a feature
+  uint8_t f = 0;          // soft feature map, blurred d, 0..255
+  uint8_t variation = 0;  // variation map value, 0..255 (Algorithm 1)
+  uint8_t reserved = 0;
+};
+
+struct MetaTexture {
+  int resolution = 0;
+  std::vector<MetaTexel> texels;  // resolution^2, row-major
+  uint32_t feature_count = 0;
+  const MetaTexel& at(int x, int y) const { return texels[size_t(y) * size_t(resolution) + size_t(x)]; }
+};
+
+// Centroids: the mean position of a feature's texels, unwrapped on the torus, rounded to the
+// nearest texel. f: d blurred with a wrap-around box/Gaussian of radius blur_texels.
+// variation may be empty (all 255: never chips).
+MetaTexture build_meta_texture(const FeatureLabels& labels, const ImageGray8& variation, double blur_texels);
+
+// File format: OpenEXR via OpenImageIO with channels dx, dy, d, f, v (float). Errors name the
+// file and what is wrong (missing channel, non-square, offsets out of range, non-integers).
+Status write_meta_texture(const std::string& path, const MetaTexture& meta);
+Result<MetaTexture> read_meta_texture(const std::string& path);
+
+// Colour-coded debug image: albedo darkened, each feature tinted with a colour from its id,
+// centroids marked with a white cross.
+ImageRGBA8 meta_debug_image(const MetaTexture& meta, const ImageRGBA8& albedo);
+
+}  // namespace tvt

@@ -1,0 +1,193 @@
+// Headless Vulkan 1.3 context: instance, one physical device with a compute+graphics queue,
+// no window or surface. RAII, move-only handles (STYLE #7).
+//
+// Device choice: ContextOptions::device, else the TERRAVT_DEVICE environment variable (a
+// substring of the device name, case-insensitive, or an index), else the first discrete
+// GPU, else the first integrated GPU, else anything (lavapipe on GPU-less machines).
+// Validation: ContextOptions::validation or TERRAVT_VALIDATION=1 enables
+// VK_LAYER_KHRONOS_validation with a debug-utils messenger that counts and records every
+// warning and error message; tests fail when validation_messages() is non-empty.
+#pragma once
+#include <vulkan/vulkan.h>
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "vt/result.h"
+
+namespace tvt::vk {
+
+// Fatal check for Vulkan calls that must not fail (STYLE #8).
+void check_result(VkResult result, const char* file, int line, const char* expr);
+#define TVT_VK_CHECK(expr) ::tvt::vk::check_result((expr), __FILE__, __LINE__, #expr)
+
+struct ContextOptions {
+  bool validation = false;   // also on when TERRAVT_VALIDATION=1
+  std::string device;        // overrides TERRAVT_DEVICE
+};
+
+class Context;
+
+// A buffer with its own dedicated memory. Host-visible buffers are persistently mapped.
+class Buffer {
+ public:
+  Buffer() = default;
+  Buffer(Buffer&&) noexcept;
+  Buffer& operator=(Buffer&&) noexcept;
+  Buffer(const Buffer&) = delete;
+  Buffer& operator=(const Buffer&) = delete;
+  ~Buffer();
+
+  VkBuffer handle() const { return buffer_; }
+  VkDeviceSize size() const { return size_; }
+  void* mapped() const { return mapped_; }  // nullptr for device-local buffers
+  explicit operator bool() const { return buffer_ != VK_NULL_HANDLE; }
+
+ private:
+  friend class Context;
+  VkDevice device_ = VK_NULL_HANDLE;
+  VkBuffer buffer_ = VK_NULL_HANDLE;
+  VkDeviceMemory memory_ = VK_NULL_HANDLE;
+  VkDeviceSize size_ = 0;
+  void* mapped_ = nullptr;
+  void reset();
+};
+
+// A 2D (array) image with its own memory and a default view of all layers.
+class Image {
+ public:
+  Image() = default;
+  Image(Image&&) noexcept;
+  Image& operator=(Image&&) noexcept;
+  Image(const Image&) = delete;
+  Image& operator=(const Image&) = delete;
+  ~Image();
+
+  VkImage handle() const { return image_; }
+  VkImageView view() const { return view_; }  // VK_IMAGE_VIEW_TYPE_2D_ARRAY over all layers
+  VkFormat format() const { return format_; }
+  uint32_t width() const { return width_; }
+  uint32_t height() const { return height_; }
+  uint32_t layers() const { return layers_; }
+  explicit operator bool() const { return image_ != VK_NULL_HANDLE; }
+
+ private:
+  friend class Context;
+  VkDevice device_ = VK_NULL_HANDLE;
+  VkImage image_ = VK_NULL_HANDLE;
+  VkImageView view_ = VK_NULL_HANDLE;
+  VkDeviceMemory memory_ = VK_NULL_HANDLE;
+  VkFormat format_ = VK_FORMAT_UNDEFINED;
+  uint32_t width_ = 0, height_ = 0, layers_ = 0;
+  void reset();
+};
+
+// A compute pipeline with its own descriptor-set layout (storage buffers / storage images /
+// uniform buffers at the given bindings, set 0) and an optional push-constant range.
+struct ComputeBinding {
+  uint32_t binding;
+  VkDescriptorType type;
+};
+
+class ComputePipeline {
+ public:
+  ComputePipeline() = default;
+  ComputePipeline(ComputePipeline&&) noexcept;
+  ComputePipeline& operator=(ComputePipeline&&) noexcept;
+  ComputePipeline(const ComputePipeline&) = delete;
+  ComputePipeline& operator=(const ComputePipeline&) = delete;
+  ~ComputePipeline();
+
+  VkPipeline handle() const { return pipeline_; }
+  VkPipelineLayout layout() const { return layout_; }
+  VkDescriptorSetLayout set_layout() const { return set_layout_; }
+
+ private:
+  friend class Context;
+  VkDevice device_ = VK_NULL_HANDLE;
+  VkPipeline pipeline_ = VK_NULL_HANDLE;
+  VkPipelineLayout layout_ = VK_NULL_HANDLE;
+  VkDescriptorSetLayout set_layout_ = VK_NULL_HANDLE;
+  void reset();
+};
+
+// One descriptor set from a pool owned by the set itself; write() binds resources.
+class DescriptorSet {
+ public:
+  DescriptorSet() = default;
+  DescriptorSet(DescriptorSet&&) noexcept;
+  DescriptorSet& operator=(DescriptorSet&&) noexcept;
+  DescriptorSet(const DescriptorSet&) = delete;
+  DescriptorSet& operator=(const DescriptorSet&) = delete;
+  ~DescriptorSet();
+
+  VkDescriptorSet handle() const { return set_; }
+  void write_buffer(uint32_t binding, VkDescriptorType type, const Buffer& buffer);
+  void write_storage_image(uint32_t binding, const Image& image);  // layout GENERAL
+
+ private:
+  friend class Context;
+  VkDevice device_ = VK_NULL_HANDLE;
+  VkDescriptorPool pool_ = VK_NULL_HANDLE;
+  VkDescriptorSet set_ = VK_NULL_HANDLE;
+  void reset();
+};
+
+class Context {
+ public:
+  static Result<std::unique_ptr<Context>> create(const ContextOptions& options = {});
+  Context(const Context&) = delete;
+  Context& operator=(const Context&) = delete;
+  ~Context();
+
+  VkInstance instance() const { return instance_; }
+  VkPhysicalDevice physical_device() const { return physical_; }
+  VkDevice device() const { return device_; }
+  VkQueue queue() const { return queue_; }
+  uint32_t queue_family() const { return queue_family_; }
+  const VkPhysicalDeviceProperties& properties() const { return properties_; }
+  std::string device_name() const { return properties_.deviceName; }
+  bool validation_enabled() const { return validation_; }
+
+  // Every validation (and other debug-utils warning/error) message since creation.
+  std::vector<std::string> validation_messages() const;
+
+  // host_visible: HOST_VISIBLE|HOST_COHERENT memory, mapped; else DEVICE_LOCAL.
+  Buffer create_buffer(VkDeviceSize size, VkBufferUsageFlags usage, bool host_visible);
+  // A 2D-array image in VK_IMAGE_LAYOUT_UNDEFINED; usage decides what it may do.
+  Image create_image(VkFormat format, uint32_t width, uint32_t height, uint32_t layers, VkImageUsageFlags usage);
+  ComputePipeline create_compute_pipeline(std::span<const uint32_t> spirv, std::span<const ComputeBinding> bindings,
+                                          uint32_t push_constant_bytes = 0);
+  DescriptorSet allocate_descriptor_set(const ComputePipeline& pipeline);
+
+  // Records with `record` into a one-time command buffer, submits, waits for completion.
+  // For set-up, uploads and tests; frame loops use their own command buffers and fences.
+  void run_commands(const std::function<void(VkCommandBuffer)>& record);
+  // Uploads bytes into a (device-local) buffer through a staging buffer.
+  void upload(const Buffer& dst, const void* data, VkDeviceSize bytes, VkDeviceSize dst_offset = 0);
+
+  // Layout transition helper (full pipeline barrier on the given image, all layers).
+  static void transition(VkCommandBuffer cmd, const Image& image, VkImageLayout from, VkImageLayout to);
+
+  struct Messages;  // validation message sink (implementation detail)
+
+ private:
+  Context() = default;
+  VkInstance instance_ = VK_NULL_HANDLE;
+  VkDebugUtilsMessengerEXT messenger_ = VK_NULL_HANDLE;
+  VkPhysicalDevice physical_ = VK_NULL_HANDLE;
+  VkDevice device_ = VK_NULL_HANDLE;
+  VkQueue queue_ = VK_NULL_HANDLE;
+  uint32_t queue_family_ = 0;
+  VkCommandPool command_pool_ = VK_NULL_HANDLE;
+  VkPhysicalDeviceProperties properties_{};
+  VkPhysicalDeviceMemoryProperties memory_properties_{};
+  bool validation_ = false;
+  std::unique_ptr<Messages> messages_;
+};
+
+}  // namespace tvt::vk

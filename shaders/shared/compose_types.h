@@ -1,0 +1,90 @@
+// GPU-visible composition parameters (std430), shared by compose.comp and the C++ host.
+// Units: *_fp values are level-0 VT texels in 1/256 fixed point (DESIGN §3).
+#ifndef TVT_SHARED_COMPOSE_TYPES_H
+#define TVT_SHARED_COMPOSE_TYPES_H
+#include "bridge.h"
+
+TVT_BEGIN
+
+TVT_CONST int TVT_MAX_MATERIALS = 16;
+TVT_CONST int TVT_MAX_DPT_LAYERS = 4;
+TVT_CONST int TVT_FIXED_BITS = 8;  // positions and sizes carry 8 fractional bits
+TVT_CONST uint TVT_NO_META = 0xffffffffu;
+
+// Transition modes (per material; a method override replaces them for all but the base).
+TVT_CONST int TVT_MODE_LINEAR = 0;    // Bloom splatting, boosted normalisation
+TVT_CONST int TVT_MODE_BLENDMAP = 1;  // Hardy & McRoberts blend maps
+TVT_CONST int TVT_MODE_FBPB = 2;      // Feature-Based Probabilistic Blending
+TVT_CONST int TVT_MODE_DPT = 3;       // Dynamic Patch Transitions
+TVT_CONST int TVT_MODE_FBPB_DPT = 4;  // FBPB features over a DPT-shaped non-feature blend
+
+TVT_CONST int TVT_COMPOSE_GROUP = 8;  // compute workgroup edge (texels)
+
+struct TvtDptLayer {      // 32 bytes
+  int64_t patch_fp;       // patch edge S_k, level-0 texels * 256
+  float exp_p;            // P_k (eq 4.1)
+  float exp_r;            // R_k (eq 4.2)
+  float exp_w;            // W_k (eq 4.3)
+  float height_h;         // H_k (Algorithm 3)
+  uint salt;              // hash salt of (scene seed, material, layer)
+  float patch_texels;     // S_k as float, for the minification fade only
+};
+
+struct TvtMaterial {      // 224 bytes
+  int64_t period_fp;      // tiling period T_n: level-0 texels per repeat * 256
+  uint texel_offset;      // first texel of mip 0 in the material texel buffer (RGBA8 words)
+  uint meta_offset;       // first texel in the meta buffer (uvec2 each), or TVT_NO_META
+  int resolution;         // R_n: material texels per side (power of two)
+  int log2_resolution;
+  int mip_count;          // log2_resolution + 1
+  int mode;               // TVT_MODE_*
+  int weight_layer;       // layer of the weight grid holding this material's weight
+  int dpt_layer_count;
+  uint fbpb_salt;
+  uint variation_salt;
+  float cm, cf, cn;       // FBPB eq 3.1 constants
+  float variation_threshold;
+  float colour_coeff;     // Cc, Algorithm 1
+  float blend_sharpness;  // s of BlendMap, (0, 0.5]
+  float dpt_fade_lo;      // DPT layer fully faded below this many texels per patch
+  float dpt_fade_hi;      // ... and fully present above this many
+  float fbpb_fade_lo;     // FBPB fades to blend map between these material LODs
+  float fbpb_fade_hi;
+  float pad0, pad1;
+  TvtDptLayer dpt[TVT_MAX_DPT_LAYERS];
+};
+
+struct TvtComposeParams {
+  int log2_vt;            // V = 2^log2_vt level-0 texels per side
+  int page_texels;        // P
+  int border_texels;      // B
+  int material_count;
+  int weight_width;       // weight grid covering the whole terrain
+  int weight_height;
+  int weight_layers;
+  int method_override;    // -1: per-material modes; else TVT_MODE_* for every material n >= 1
+  int dpt_layer_limit;    // 0: all layers; else at most this many DPT layers
+  int supersample;        // s: s*s sub-samples per texel (1 = direct)
+  float linear_boost;     // Bloom: normalised weights sum to this, then clamped (>= 1)
+  int pad0;
+  TvtMaterial materials[TVT_MAX_MATERIALS];
+};
+
+struct TvtPageJob {       // one page to compose into one cache slot
+  uint mip;
+  uint page_x;
+  uint page_y;
+  uint slot;              // layer of the output array image
+};
+
+TVT_END
+
+#ifdef __cplusplus
+static_assert(sizeof(tvt::gpu::TvtDptLayer) == 32);
+static_assert(sizeof(tvt::gpu::TvtMaterial) == 224);
+static_assert(offsetof(tvt::gpu::TvtMaterial, dpt) == 96);
+static_assert(sizeof(tvt::gpu::TvtComposeParams) == 48 + 16 * 224);
+static_assert(offsetof(tvt::gpu::TvtComposeParams, materials) == 48);
+static_assert(sizeof(tvt::gpu::TvtPageJob) == 16);
+#endif
+#endif
