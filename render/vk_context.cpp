@@ -1,0 +1,1 @@
+#include "render/vk_context.h"
