@@ -1,0 +1,142 @@
+#include "compose/packed_scene.h"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+
+#include "shaders/shared/hash.h"
+
+namespace tvt {
+
+namespace {
+constexpr std::pair<Method, std::string_view> k_method_names[] = {
+    {Method::Linear, "linear"}, {Method::BlendMap, "blendmap"}, {Method::Fbpb, "fbpb"},
+    {Method::Dpt1, "dpt1"},     {Method::Dpt2, "dpt2"},         {Method::FbpbDpt, "fbpb+dpt2"},
+};
+
+int mode_code(Mode m) {
+  switch (m) {
+    case Mode::Linear: return gpu::TVT_MODE_LINEAR;
+    case Mode::BlendMap: return gpu::TVT_MODE_BLENDMAP;
+    case Mode::Fbpb: return gpu::TVT_MODE_FBPB;
+    case Mode::Dpt: return gpu::TVT_MODE_DPT;
+    case Mode::FbpbDpt: return gpu::TVT_MODE_FBPB_DPT;
+  }
+  return gpu::TVT_MODE_BLENDMAP;
+}
+
+int64_t to_fixed(double texels) {
+  const double v = std::clamp(texels * 256.0, 1.0, 9.0e15);
+  return int64_t(std::llround(v));
+}
+}  // namespace
+
+std::string_view to_string(Method method) {
+  for (const auto& [m, n] : k_method_names)
+    if (m == method) return n;
+  return "?";
+}
+
+std::optional<Method> method_from_string(std::string_view text) {
+  for (const auto& [m, n] : k_method_names)
+    if (n == text) return m;
+  return std::nullopt;
+}
+
+ComposeOptions options_for(Method method) {
+  ComposeOptions o;
+  switch (method) {
+    case Method::Linear: o.method = Mode::Linear; break;
+    case Method::BlendMap: o.method = Mode::BlendMap; break;
+    case Method::Fbpb: o.method = Mode::Fbpb; break;
+    case Method::Dpt1: o.method = Mode::Dpt; o.dpt_layer_limit = 1; break;
+    case Method::Dpt2: o.method = Mode::Dpt; o.dpt_layer_limit = 2; break;
+    case Method::FbpbDpt: o.method = Mode::FbpbDpt; o.dpt_layer_limit = 2; break;
+  }
+  return o;
+}
+
+Result<PackedScene> pack_scene(const SceneAssets& assets, const ComposeOptions& options) {
+  const SceneDesc& d = assets.desc;
+  if (d.materials.empty() || d.materials.size() > size_t(gpu::TVT_MAX_MATERIALS))
+    return make_error(d.source_path + ": /materials: need 1 to 16 materials");
+  if (options.supersample < 1 || options.supersample > 64 || !std::has_single_bit(options.supersample))
+    return make_error("supersample: must be a power of two from 1 to 64, got " + std::to_string(options.supersample));
+
+  PackedScene out;
+  gpu::TvtComposeParams& p = out.params;
+  p.log2_vt = int(d.vt.log2_size);
+  p.page_texels = int(d.vt.page_texels);
+  p.border_texels = int(d.vt.border_texels);
+  p.material_count = int(d.materials.size());
+  p.weight_width = assets.weights.width;
+  p.weight_height = assets.weights.height;
+  p.weight_layers = assets.weights.layers;
+  p.method_override = options.method ? mode_code(*options.method) : -1;
+  p.dpt_layer_limit = int(options.dpt_layer_limit);
+  p.supersample = int(options.supersample);
+  p.linear_boost = float(d.linear_boost);
+  out.weights = assets.weights.data;
+
+  for (size_t n = 0; n < d.materials.size(); ++n) {
+    const MaterialDesc& md = d.materials[n];
+    const MaterialAssets& ma = assets.materials[n];
+    gpu::TvtMaterial& g = p.materials[n];
+    g.period_fp = to_fixed(md.period_texels);
+    g.resolution = ma.albedo.resolution;
+    g.log2_resolution = std::countr_zero(unsigned(g.resolution));
+    g.mip_count = int(ma.albedo.mips.size());
+    g.texel_offset = uint32_t(out.material_texels.size());
+    for (const ImageRGBA8& mip : ma.albedo.mips)
+      for (size_t t = 0; t < mip.texels.size(); t += 4)
+        out.material_texels.push_back(uint32_t(mip.texels[t]) | uint32_t(mip.texels[t + 1]) << 8 |
+                                      uint32_t(mip.texels[t + 2]) << 16 | uint32_t(mip.texels[t + 3]) << 24);
+    g.meta_offset = gpu::TVT_NO_META;
+    const bool has_features = ma.meta && ma.meta->feature_count > 0;
+    if (has_features) {
+      g.meta_offset = uint32_t(out.meta_texels.size() / 2);
+      for (const MetaTexel& t : ma.meta->texels) {
+        out.meta_texels.push_back(uint32_t(uint16_t(t.dx)) | uint32_t(uint16_t(t.dy)) << 16);
+        out.meta_texels.push_back(uint32_t(t.d) | uint32_t(t.f) << 8 | uint32_t(t.variation) << 16);
+      }
+    }
+    // Effective mode: the override applies to every layer above the base.
+    Mode mode = (n > 0 && options.method) ? *options.method : md.mode;
+    size_t layers = md.dpt.layers.size();
+    if (options.dpt_layer_limit > 0) layers = std::min<size_t>(layers, options.dpt_layer_limit);
+    layers = std::min<size_t>(layers, size_t(gpu::TVT_MAX_DPT_LAYERS));
+    if (mode == Mode::Fbpb && !has_features) mode = Mode::BlendMap;
+    if (mode == Mode::FbpbDpt && !has_features) mode = Mode::Dpt;
+    if (mode == Mode::Dpt && layers == 0) mode = Mode::BlendMap;
+    if (mode == Mode::FbpbDpt && layers == 0) mode = Mode::Fbpb;
+    g.mode = mode_code(mode);
+    g.weight_layer = int(n);
+    g.dpt_layer_count = int(layers);
+    g.fbpb_salt = gpu::tvt_salt(d.seed, uint32_t(n), 0u, 1u);
+    g.variation_salt = gpu::tvt_salt(d.seed, uint32_t(n), 0u, 2u);
+    g.cm = float(md.fbpb.cm);
+    g.cf = float(md.fbpb.cf);
+    g.cn = float(md.fbpb.cn);
+    g.variation_threshold = float(md.fbpb.variation_threshold);
+    g.colour_coeff = float(md.fbpb.colour_coeff);
+    g.blend_sharpness = float(std::clamp(md.blend_sharpness, 1e-3, 0.5));
+    g.dpt_fade_lo = float(md.dpt.fade_lo_texels);
+    g.dpt_fade_hi = float(md.dpt.fade_hi_texels);
+    g.fbpb_fade_lo = float(md.fbpb.fade_lod_lo);
+    g.fbpb_fade_hi = float(md.fbpb.fade_lod_hi);
+    for (size_t k = 0; k < layers; ++k) {
+      const DptLayerDesc& l = md.dpt.layers[k];
+      gpu::TvtDptLayer& gl = g.dpt[k];
+      gl.patch_fp = to_fixed(l.patch_texels);
+      gl.exp_p = float(l.p);
+      gl.exp_r = float(l.r);
+      gl.exp_w = float(l.w);
+      gl.height_h = float(l.h);
+      gl.salt = gpu::tvt_salt(d.seed, uint32_t(n), uint32_t(k), 3u);
+      gl.patch_texels = float(double(gl.patch_fp) / 256.0);
+    }
+  }
+  return out;
+}
+
+}  // namespace tvt

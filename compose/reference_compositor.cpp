@@ -1,0 +1,286 @@
+#include "compose/reference_compositor.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "shaders/shared/hash.h"
+
+namespace tvt {
+
+namespace {
+
+using gpu::tvt_floor_div;
+using gpu::tvt_floor_mod;
+
+double clamp01(double v) { return std::isfinite(v) ? std::clamp(v, 0.0, 1.0) : 0.0; }
+
+// pow with a zero (or negative) base defined as 0: "no weight stays no weight".
+double safe_pow(double base, double e) { return base <= 0.0 ? 0.0 : std::pow(base, e); }
+
+double smoothstep(double e0, double e1, double x) {
+  const double t = std::clamp((x - e0) / (e1 - e0), 0.0, 1.0);
+  return t * t * (3.0 - 2.0 * t);
+}
+
+// BlendMap (Hardy & McRoberts 2006): monotone in b, 0 at b = 0, 1 at b = 1; texels with a
+// high blend map value A appear first. s is the transition half-width.
+double blend_map(double b, double a, double s) {
+  b = clamp01(b);
+  return smoothstep(1.0 - b - s, 1.0 - b + s, s + a * (1.0 - 2.0 * s));
+}
+
+// Linear fade: 0 at or below lo, 1 at or above hi (a step at lo when hi <= lo).
+double ramp(double v, double lo, double hi) {
+  if (hi <= lo) return v >= lo ? 1.0 : 0.0;
+  return std::clamp((v - lo) / (hi - lo), 0.0, 1.0);
+}
+
+struct Ctx {
+  const PackedScene& s;
+  const gpu::TvtComposeParams& p;
+  int64_t vt_fp;  // V * 256
+
+  explicit Ctx(const PackedScene& scene)
+      : s(scene), p(scene.params), vt_fp(int64_t(1) << (scene.params.log2_vt + gpu::TVT_FIXED_BITS)) {}
+
+  // Bilinear weight of a layer at a terrain position; positions outside the terrain clamp.
+  double weight(int layer, int64_t x_fp, int64_t y_fp) const {
+    const int shift = p.log2_vt + gpu::TVT_FIXED_BITS;
+    const int64_t half = int64_t(1) << (shift - 1);
+    x_fp = std::clamp<int64_t>(x_fp, 0, vt_fp);
+    y_fp = std::clamp<int64_t>(y_fp, 0, vt_fp);
+    const int64_t nx = x_fp * p.weight_width - half, ny = y_fp * p.weight_height - half;
+    const int64_t ix = nx >> shift, iy = ny >> shift;
+    const double fx = std::ldexp(double(nx - (ix << shift)), -shift);
+    const double fy = std::ldexp(double(ny - (iy << shift)), -shift);
+    auto at = [&](int64_t i, int64_t j) {
+      const int x = int(std::clamp<int64_t>(i, 0, p.weight_width - 1));
+      const int y = int(std::clamp<int64_t>(j, 0, p.weight_height - 1));
+      return double(s.weights[(size_t(layer) * size_t(p.weight_height) + size_t(y)) * size_t(p.weight_width) +
+                              size_t(x)]);
+    };
+    const double w = (at(ix, iy) * (1 - fx) + at(ix + 1, iy) * fx) * (1 - fy) +
+                     (at(ix, iy + 1) * (1 - fx) + at(ix + 1, iy + 1) * fx) * fy;
+    return clamp01(w);
+  }
+
+  glm::dvec4 texel(const gpu::TvtMaterial& m, int level, int64_t x, int64_t y) const {
+    uint32_t offset = m.texel_offset;
+    for (int l = 0; l < level; ++l) offset += uint32_t(m.resolution >> l) * uint32_t(m.resolution >> l);
+    const int64_t rl = m.resolution >> level;
+    const uint32_t w = s.material_texels[offset + uint32_t(tvt_floor_mod(y, rl) * rl + tvt_floor_mod(x, rl))];
+    return glm::dvec4(w & 0xffu, (w >> 8) & 0xffu, (w >> 16) & 0xffu, w >> 24) / 255.0;
+  }
+
+  glm::dvec4 bilinear(const gpu::TvtMaterial& m, int level, double u, double v) const {
+    const double scale = std::ldexp(1.0, -level);
+    const double ul = u * scale - 0.5, vl = v * scale - 0.5;
+    const double fi = std::floor(ul), fj = std::floor(vl);
+    const double fx = ul - fi, fy = vl - fj;
+    const int64_t i = int64_t(fi), j = int64_t(fj);
+    return (texel(m, level, i, j) * (1 - fx) + texel(m, level, i + 1, j) * fx) * (1 - fy) +
+           (texel(m, level, i, j + 1) * (1 - fx) + texel(m, level, i + 1, j + 1) * fx) * fy;
+  }
+
+  // Material texel coordinate inside the tile (in [0, R)) and the global material texel index.
+  void material_coord(const gpu::TvtMaterial& m, int64_t pos_fp, double& local, int64_t& global) const {
+    const int64_t num = pos_fp * m.resolution;
+    global = tvt_floor_div(num, m.period_fp);
+    const int64_t rem = num - global * m.period_fp;
+    local = double(tvt_floor_mod(global, m.resolution)) + double(rem) / double(m.period_fp);
+  }
+
+  // log2 of material texels per sample footprint.
+  double material_lod(const gpu::TvtMaterial& m, double footprint) const {
+    return std::log2(footprint * m.resolution * 256.0 / double(m.period_fp));
+  }
+
+  // Trilinear, wrapping material sample at a terrain position.
+  glm::dvec4 sample_material(const gpu::TvtMaterial& m, int64_t x_fp, int64_t y_fp, double lod) const {
+    double u, v;
+    int64_t gx, gy;
+    material_coord(m, x_fp, u, gx);
+    material_coord(m, y_fp, v, gy);
+    const double l = std::clamp(lod, 0.0, double(m.mip_count - 1));
+    const int l0 = int(std::floor(l));
+    const int l1 = std::min(l0 + 1, m.mip_count - 1);
+    const double t = l - l0;
+    const glm::dvec4 a = bilinear(m, l0, u, v);
+    if (t <= 0.0 || l1 == l0) return a;
+    return a * (1 - t) + bilinear(m, l1, u, v) * t;
+  }
+
+  // DPT (eq. 4.1–4.4, Algorithms 2–3): blend weight b and patch height h for material m.
+  void dpt(const gpu::TvtMaterial& m, int64_t x_fp, int64_t y_fp, double footprint, double plain, double height_a,
+           double& b_out, double& h_out) const {
+    double b = 0, h = 0, fade_max = 0;
+    for (int k = 0; k < m.dpt_layer_count; ++k) {
+      const gpu::TvtDptLayer& L = m.dpt[k];
+      const double fade = ramp(double(L.patch_texels) / footprint, m.dpt_fade_lo, m.dpt_fade_hi);  // eq 4.4
+      fade_max = std::max(fade_max, fade);
+      if (fade <= 0.0) continue;
+      const int64_t ps = L.patch_fp;
+      const int64_t ix = tvt_floor_div(x_fp, ps), iy = tvt_floor_div(y_fp, ps);
+      const double fx = double(x_fp - ix * ps) / double(ps), fy = double(y_fp - iy * ps) / double(ps);
+      double mask[2][2];
+      for (int cy = 0; cy < 2; ++cy)
+        for (int cx = 0; cx < 2; ++cx) {
+          const int64_t jx = ix + cx, jy = iy + cy;
+          const double pj = safe_pow(weight(m.weight_layer, jx * ps + ps / 2, jy * ps + ps / 2), L.exp_p);  // eq 4.1
+          const double rj = safe_pow(gpu::tvt_rand01(gpu::tvt_hash_coord(jx, jy, L.salt)), L.exp_r);
+          mask[cy][cx] = (pj > 0.0 && rj <= pj) ? 1.0 : 0.0;  // eq 4.2
+        }
+      const double bl = (mask[0][0] * (1 - fx) + mask[0][1] * fx) * (1 - fy) + (mask[1][0] * (1 - fx) + mask[1][1] * fx) * fy;
+      const double w = safe_pow(bl, L.exp_w);  // eq 4.3
+      b += fade * w;
+      h += fade * w * L.height_h;
+    }
+    b = std::min(b, 1.0);
+    h = std::min(h, 1.0);
+    b = blend_map(b, height_a, m.blend_sharpness);
+    // When even the largest layer's patches are too small, fall back to the plain weight.
+    b_out = fade_max * b + (1.0 - fade_max) * blend_map(plain, height_a, m.blend_sharpness);
+    h_out = h;
+  }
+};
+
+}  // namespace
+
+uint8_t to_unorm8(double v) { return uint8_t(std::lround(clamp01(v) * 255.0)); }
+
+glm::dvec4 compose_sample_reference(const PackedScene& scene, int64_t x_fp, int64_t y_fp, double footprint) {
+  const Ctx c(scene);
+  const gpu::TvtComposeParams& p = scene.params;
+  footprint = std::isfinite(footprint) ? std::max(footprint, 1.0 / 256.0) : 1.0;
+
+  // Raw weights of every layer, and the running sum for Bloom's sequential normalisation.
+  double weights[gpu::TVT_MAX_MATERIALS];
+  for (int n = 0; n < p.material_count; ++n) weights[n] = c.weight(p.materials[n].weight_layer, x_fp, y_fp);
+
+  const gpu::TvtMaterial& base = p.materials[0];
+  glm::dvec4 result = c.sample_material(base, x_fp, y_fp, c.material_lod(base, footprint));
+  double weight_sum = weights[0];
+  bool feature_above = false;  // F_{n-1} of eq 3.2: a lower layer shows a visible feature
+
+  for (int n = 1; n < p.material_count; ++n) {
+    const gpu::TvtMaterial& m = p.materials[n];
+    const double plain = weights[n];
+    weight_sum += plain;
+    const int mode = m.mode;
+    // Layers with no weight anywhere the mode looks contribute nothing: skip the fetches.
+    if (plain <= 0.0 && (mode == gpu::TVT_MODE_LINEAR || mode == gpu::TVT_MODE_BLENDMAP)) continue;
+
+    const double lod = c.material_lod(m, footprint);
+    glm::dvec4 colour = c.sample_material(m, x_fp, y_fp, lod);
+    double b = 0.0;
+    double height = colour.a;
+    bool visible = false;
+
+    if (mode == gpu::TVT_MODE_LINEAR) {
+      // Bloom: weights normalised over the layers so far, boosted, clamped.
+      b = weight_sum > 0.0 ? std::min(1.0, double(p.linear_boost) * plain / weight_sum) : 0.0;
+    } else if (mode == gpu::TVT_MODE_BLENDMAP) {
+      b = blend_map(plain, colour.a, m.blend_sharpness);
+    } else if (mode == gpu::TVT_MODE_DPT) {
+      c.dpt(m, x_fp, y_fp, footprint, plain, colour.a, b, height);
+    } else {  // FBPB, FBPB+DPT
+      double non_feature = 0.0;  // what a non-feature texel blends with: p (FBPB) or DPT's b
+      double dpt_h = colour.a;
+      if (mode == gpu::TVT_MODE_FBPB_DPT) c.dpt(m, x_fp, y_fp, footprint, plain, colour.a, non_feature, dpt_h);
+      const double fade = 1.0 - ramp(lod, m.fbpb_fade_lo, m.fbpb_fade_hi);
+      const double fallback = mode == gpu::TVT_MODE_FBPB_DPT ? non_feature : blend_map(plain, colour.a, m.blend_sharpness);
+      double w = 0.0;
+      if (fade > 0.0) {
+        const int64_t R = m.resolution;
+        int64_t gx, gy;
+        double u, v;
+        c.material_coord(m, x_fp, u, gx);
+        c.material_coord(m, y_fp, v, gy);
+        const int64_t lx = tvt_floor_mod(gx, R), ly = tvt_floor_mod(gy, R);
+        const size_t mi = size_t(m.meta_offset) + size_t(ly * R + lx);
+        const uint32_t w0 = scene.meta_texels[2 * mi], w1 = scene.meta_texels[2 * mi + 1];
+        const int64_t dx = int16_t(w0 & 0xffffu), dy = int16_t(w0 >> 16);
+        double d = double(w1 & 0xffu);
+        const double f = double((w1 >> 8) & 0xffu) / 255.0;
+        // Centroid in global material texels: unique per feature instance over the terrain.
+        const int64_t cx = gx + dx, cy = gy + dy;
+        const int64_t cx_fp = tvt_floor_div((2 * cx + 1) * m.period_fp, 2 * R);
+        const int64_t cy_fp = tvt_floor_div((2 * cy + 1) * m.period_fp, 2 * R);
+        const double pw = d > 0.0 ? c.weight(m.weight_layer, cx_fp, cy_fp) : plain;  // all texels of a feature share p
+        const double r = gpu::tvt_rand01(gpu::tvt_hash_coord(cx, cy, m.fbpb_salt));
+        visible = d > 0.0 && pw > 0.0 && r <= pw * double(m.cf);  // eq 3.1: sgn(floor(p*Cf / r))
+        if (visible && pw < 1.0) {
+          // Algorithm 1: variation map at the material uv plus a per-feature random offset.
+          const uint32_t hv = gpu::tvt_hash_coord(cx, cy, m.variation_salt);
+          const int64_t vx = tvt_floor_mod(lx + int64_t(hv & 0xffffu), R);
+          const int64_t vy = tvt_floor_mod(ly + int64_t(hv >> 16), R);
+          const uint32_t vw = scene.meta_texels[2 * (size_t(m.meta_offset) + size_t(vy * R + vx)) + 1];
+          const double variation = double((vw >> 16) & 0xffu) / 255.0;
+          if (variation < double(m.variation_threshold)) {
+            d = 0.0;  // a chipped hole shows the layer below
+            visible = false;
+            colour = glm::dvec4(glm::dvec3(colour) * double(m.colour_coeff), colour.a);
+          }
+        }
+        const double nf = mode == gpu::TVT_MODE_FBPB_DPT ? non_feature : pw;
+        w = visible ? std::min(double(m.cm) * std::max(pw, f), 1.0) : std::min((1.0 - d) * nf * double(m.cn), 1.0);
+      }
+      b = fade * w + (1.0 - fade) * fallback;
+      visible = visible && fade > 0.0;
+      if (mode == gpu::TVT_MODE_FBPB_DPT) height = dpt_h;
+    }
+    // Precedence (eq 3.2/3.3): a visible lower feature is never covered by non-feature texels.
+    const double bn = (visible || !feature_above) ? clamp01(b) : 0.0;
+    feature_above = feature_above || visible;
+    result = glm::dvec4(glm::dvec3(result) * (1.0 - bn) + glm::dvec3(colour) * bn, result.a * (1.0 - bn) + height * bn);
+  }
+  for (int i = 0; i < 4; ++i) result[i] = clamp01(result[i]);
+  return result;
+}
+
+glm::dvec4 compose_texel_reference(const PackedScene& scene, uint32_t mip, int64_t x, int64_t y) {
+  const gpu::TvtComposeParams& p = scene.params;
+  const int64_t last = (int64_t(1) << (p.log2_vt - int(mip))) - 1;
+  x = std::clamp<int64_t>(x, 0, last);
+  y = std::clamp<int64_t>(y, 0, last);
+  const int64_t s = p.supersample;
+  const int sub_shift = int(mip) + gpu::TVT_FIXED_BITS;  // one mip texel = 2^sub_shift fixed units
+  const double footprint = std::ldexp(1.0, int(mip)) / double(s);
+  glm::dvec4 sum(0.0);
+  for (int64_t sy = 0; sy < s; ++sy)
+    for (int64_t sx = 0; sx < s; ++sx) {
+      const int64_t xf = (x << sub_shift) + (((2 * sx + 1) << sub_shift) / (2 * s));
+      const int64_t yf = (y << sub_shift) + (((2 * sy + 1) << sub_shift) / (2 * s));
+      sum += compose_sample_reference(scene, xf, yf, footprint);
+    }
+  return sum / double(s * s);
+}
+
+glm::dvec4 ground_truth_texel(const PackedScene& scene, uint32_t mip, int64_t x, int64_t y) {
+  glm::dvec4 sum(0.0);
+  const int64_t n = int64_t(1) << mip;
+  for (int64_t j = 0; j < n; ++j)
+    for (int64_t i = 0; i < n; ++i) {
+      const int64_t xf = ((x * n + i) << gpu::TVT_FIXED_BITS) + (1 << (gpu::TVT_FIXED_BITS - 1));
+      const int64_t yf = ((y * n + j) << gpu::TVT_FIXED_BITS) + (1 << (gpu::TVT_FIXED_BITS - 1));
+      sum += compose_sample_reference(scene, xf, yf, 1.0);
+    }
+  return sum / double(n * n);
+}
+
+std::vector<uint8_t> compose_page_reference(const PackedScene& scene, const PageId& page) {
+  const gpu::TvtComposeParams& p = scene.params;
+  const int size = p.page_texels + 2 * p.border_texels;
+  std::vector<uint8_t> out(size_t(size) * size_t(size) * 4);
+  for (int ty = 0; ty < size; ++ty)
+    for (int tx = 0; tx < size; ++tx) {
+      const int64_t x = int64_t(page.x) * p.page_texels - p.border_texels + tx;
+      const int64_t y = int64_t(page.y) * p.page_texels - p.border_texels + ty;
+      const glm::dvec4 v = compose_texel_reference(scene, page.mip, x, y);
+      uint8_t* o = &out[(size_t(ty) * size_t(size) + size_t(tx)) * 4];
+      for (int c = 0; c < 4; ++c) o[c] = to_unorm8(v[c]);
+    }
+  return out;
+}
+
+}  // namespace tvt

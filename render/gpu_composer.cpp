@@ -1,0 +1,127 @@
+#include "render/gpu_composer.h"
+
+#include <embedded_shaders.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstring>
+
+#include "shaders/shared/compose_bindings.h"
+
+namespace tvt {
+
+namespace {
+constexpr VkBufferUsageFlags k_storage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+
+// Uploads a vector into a device-local storage buffer (at least 16 bytes: empty inputs bind a dummy).
+template <class T>
+vk::Buffer upload_vector(vk::Context& ctx, const std::vector<T>& data) {
+  const VkDeviceSize bytes = std::max<VkDeviceSize>(16, data.size() * sizeof(T));
+  vk::Buffer buffer = ctx.create_buffer(bytes, k_storage, false);
+  if (!data.empty()) ctx.upload(buffer, data.data(), data.size() * sizeof(T));
+  return buffer;
+}
+}  // namespace
+
+GpuComposer::~GpuComposer() = default;
+
+Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, const PackedScene& scene,
+                                                         uint32_t slots) {
+  if (slots == 0 || slots > context.properties().limits.maxImageArrayLayers)
+    return make_error("compose slots: must be between 1 and " +
+                      std::to_string(context.properties().limits.maxImageArrayLayers) + ", got " +
+                      std::to_string(slots));
+  std::unique_ptr<GpuComposer> c(new GpuComposer());
+  c->context_ = &context;
+  c->slots_ = slots;
+  c->slot_texels_ = uint32_t(scene.params.page_texels + 2 * scene.params.border_texels);
+  c->params_ = scene.params;
+
+  c->params_buffer_ = context.create_buffer(sizeof(gpu::TvtComposeParams), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+  std::memcpy(c->params_buffer_.mapped(), &c->params_, sizeof(c->params_));
+  c->material_buffer_ = upload_vector(context, scene.material_texels);
+  c->meta_buffer_ = upload_vector(context, scene.meta_texels);
+  c->weight_buffer_ = upload_vector(context, scene.weights);
+  c->job_buffer_ = context.create_buffer(sizeof(gpu::TvtPageJob) * slots, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+  c->readback_buffer_ = context.create_buffer(VkDeviceSize(c->slot_texels_) * c->slot_texels_ * 4 * slots,
+                                              VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
+  c->output_ = context.create_image(VK_FORMAT_R8G8B8A8_UNORM, c->slot_texels_, c->slot_texels_, slots,
+                                    VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT |
+                                        VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT);
+
+  const vk::ComputeBinding bindings[] = {
+      {TVT_BIND_COMPOSE_PARAMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}, {TVT_BIND_MATERIAL_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+      {TVT_BIND_META_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},    {TVT_BIND_WEIGHTS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+      {TVT_BIND_PAGE_JOBS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},      {TVT_BIND_PAGE_OUTPUT, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
+  };
+  c->pipeline_ = context.create_compute_pipeline(shaders::compose_comp(), bindings, sizeof(gpu::TvtComposePush));
+  c->descriptors_ = context.allocate_descriptor_set(c->pipeline_);
+  c->descriptors_.write_buffer(TVT_BIND_COMPOSE_PARAMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->params_buffer_);
+  c->descriptors_.write_buffer(TVT_BIND_MATERIAL_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->material_buffer_);
+  c->descriptors_.write_buffer(TVT_BIND_META_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->meta_buffer_);
+  c->descriptors_.write_buffer(TVT_BIND_WEIGHTS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->weight_buffer_);
+  c->descriptors_.write_buffer(TVT_BIND_PAGE_JOBS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->job_buffer_);
+  c->descriptors_.write_storage_image(TVT_BIND_PAGE_OUTPUT, c->output_);
+  context.run_commands([&](VkCommandBuffer cmd) {
+    vk::Context::transition(cmd, c->output_, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL);
+  });
+  return c;
+}
+
+void GpuComposer::set_params(const gpu::TvtComposeParams& params) {
+  params_ = params;
+  std::memcpy(params_buffer_.mapped(), &params_, sizeof(params_));
+}
+
+void GpuComposer::record(VkCommandBuffer cmd, std::span<const PageJob> jobs) {
+  TVT_CHECK(jobs.size() <= slots_);
+  if (jobs.empty()) return;
+  auto* dst = static_cast<gpu::TvtPageJob*>(job_buffer_.mapped());
+  for (size_t i = 0; i < jobs.size(); ++i) {
+    TVT_CHECK(jobs[i].slot < slots_);
+    dst[i] = gpu::TvtPageJob{jobs[i].page.mip, jobs[i].page.x, jobs[i].page.y, jobs[i].slot};
+  }
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.handle());
+  const VkDescriptorSet set = descriptors_.handle();
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.layout(), 0, 1, &set, 0, nullptr);
+  const gpu::TvtComposePush push{0u, uint32_t(jobs.size())};
+  vkCmdPushConstants(cmd, pipeline_.layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
+  const uint32_t groups = (slot_texels_ + gpu::TVT_COMPOSE_GROUP - 1) / gpu::TVT_COMPOSE_GROUP;
+  vkCmdDispatch(cmd, groups, groups, uint32_t(jobs.size()));
+}
+
+std::vector<std::vector<uint8_t>> GpuComposer::compose_pages(std::span<const PageId> pages) {
+  std::vector<std::vector<uint8_t>> out;
+  out.reserve(pages.size());
+  const size_t page_bytes = size_t(slot_texels_) * slot_texels_ * 4;
+  for (size_t first = 0; first < pages.size(); first += slots_) {
+    const size_t count = std::min<size_t>(slots_, pages.size() - first);
+    std::vector<PageJob> jobs(count);
+    for (size_t i = 0; i < count; ++i) jobs[i] = PageJob{pages[first + i], uint32_t(i)};
+    context_->run_commands([&](VkCommandBuffer cmd) {
+      record(cmd, jobs);
+      vk::Context::transition(cmd, output_, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
+      VkBufferImageCopy region{};
+      region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, uint32_t(count)};
+      region.imageExtent = {slot_texels_, slot_texels_, 1};
+      vkCmdCopyImageToBuffer(cmd, output_.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, readback_buffer_.handle(), 1,
+                             &region);
+      vk::Context::transition(cmd, output_, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL);
+    });
+    const auto* src = static_cast<const uint8_t*>(readback_buffer_.mapped());
+    for (size_t i = 0; i < count; ++i) out.emplace_back(src + i * page_bytes, src + (i + 1) * page_bytes);
+  }
+  return out;
+}
+
+double GpuComposer::time_batch(std::span<const PageId> pages, int repeats) {
+  TVT_CHECK(pages.size() <= slots_);
+  std::vector<PageJob> jobs(pages.size());
+  for (size_t i = 0; i < pages.size(); ++i) jobs[i] = PageJob{pages[i], uint32_t(i)};
+  const auto start = std::chrono::steady_clock::now();
+  for (int r = 0; r < repeats; ++r) context_->run_commands([&](VkCommandBuffer cmd) { record(cmd, jobs); });
+  const auto end = std::chrono::steady_clock::now();
+  return std::chrono::duration<double>(end - start).count() / std::max(repeats, 1);
+}
+
+}  // namespace tvt

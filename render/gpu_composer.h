@@ -1,0 +1,59 @@
+// Host side of compose.comp: owns the scene buffers on the GPU and composes batches of pages
+// into layers of a storage image (RGBA8, (P+2B)^2 per layer). Planned once from a
+// PackedScene, then only records (STYLE #9). Not thread-safe; one queue.
+#pragma once
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "compose/packed_scene.h"
+#include "render/vk_context.h"
+#include "vt/vt_config.h"
+
+namespace tvt {
+
+struct PageJob {
+  PageId page;
+  uint32_t slot = 0;  // output image layer
+};
+
+class GpuComposer {
+ public:
+  // slots: layers of the owned output image; also the most pages one dispatch composes.
+  static Result<std::unique_ptr<GpuComposer>> create(vk::Context& context, const PackedScene& scene, uint32_t slots);
+  ~GpuComposer();
+
+  // Replaces the parameter block (method, supersampling...) keeping the uploaded textures.
+  // The GPU must not be using the composer (call between batches).
+  void set_params(const gpu::TvtComposeParams& params);
+  const gpu::TvtComposeParams& params() const { return params_; }
+
+  // Records the composition of `jobs` into the output image, which must be in layout GENERAL
+  // (create() leaves it so). Jobs are copied into a host-visible ring; at most slots() jobs.
+  void record(VkCommandBuffer cmd, std::span<const PageJob> jobs);
+
+  // Composes pages and reads them back (blocking; tools and tests). Any number of pages:
+  // they are processed in batches of slots(). Each result is (P+2B)^2 RGBA8, row-major.
+  std::vector<std::vector<uint8_t>> compose_pages(std::span<const PageId> pages);
+
+  // Times `repeats` batches of `pages` on the GPU (submit + wait), returns seconds per batch.
+  double time_batch(std::span<const PageId> pages, int repeats);
+
+  vk::Image& output() { return output_; }
+  uint32_t slots() const { return slots_; }
+  uint32_t slot_texels() const { return slot_texels_; }
+
+ private:
+  GpuComposer() = default;
+  vk::Context* context_ = nullptr;
+  gpu::TvtComposeParams params_{};
+  uint32_t slots_ = 0;
+  uint32_t slot_texels_ = 0;
+  vk::Buffer params_buffer_, material_buffer_, meta_buffer_, weight_buffer_, job_buffer_, readback_buffer_;
+  vk::Image output_;
+  vk::ComputePipeline pipeline_;
+  vk::DescriptorSet descriptors_;
+};
+
+}  // namespace tvt
