@@ -1,0 +1,72 @@
+#include "support/synthetic_scene.h"
+
+#include <algorithm>
+
+namespace tvt::test {
+
+SceneAssets make_synthetic_assets(const std::vector<SyntheticMaterial>& materials, uint32_t log2_vt) {
+  SceneAssets a;
+  a.desc.source_path = "<synthetic>";
+  a.desc.seed = 42;
+  a.desc.vt.log2_size = log2_vt;
+  a.desc.vt.page_texels = 16;
+  a.desc.vt.border_texels = 2;
+  a.desc.linear_boost = 1.0;
+  a.weights.width = 4;
+  a.weights.height = 4;
+  a.weights.layers = int(materials.size());
+  a.weights.data.assign(16 * materials.size(), 0.f);
+  float others = 0.f;
+  for (size_t n = 0; n < materials.size(); ++n) {
+    const SyntheticMaterial& s = materials[n];
+    MaterialDesc md;
+    md.name = "m" + std::to_string(n);
+    md.mode = s.mode;
+    md.period_texels = 64.0;
+    md.weight.kind = n == 0 ? WeightDesc::Kind::Remainder : WeightDesc::Kind::Rule;
+    a.desc.materials.push_back(md);
+    ImageRGBA8 img(s.resolution, s.resolution);
+    for (size_t t = 0; t < img.texels.size(); t += 4) std::copy(s.rgba.begin(), s.rgba.end(), img.texels.begin() + long(t));
+    MaterialAssets ma;
+    ma.albedo = build_mip_chain(img);
+    a.materials.push_back(std::move(ma));
+    if (n > 0) {
+      set_weight(a, int(n), s.weight);
+      others += s.weight;
+    }
+  }
+  set_weight(a, 0, 1.f - std::clamp(others, 0.f, 1.f));
+  return a;
+}
+
+void set_weight(SceneAssets& a, int layer, float value) {
+  std::fill_n(a.weights.data.begin() + long(layer) * 16, 16, value);
+}
+
+MetaTexture square_feature_meta(int resolution, int cx, int cy, int side, uint8_t variation) {
+  MetaTexture m;
+  m.resolution = resolution;
+  m.feature_count = 1;
+  m.texels.resize(size_t(resolution) * size_t(resolution));
+  auto wrap_delta = [&](int d) {
+    d %= resolution;
+    if (d > resolution / 2) d -= resolution;
+    if (d < -resolution / 2) d += resolution;
+    return d;
+  };
+  for (int y = 0; y < resolution; ++y)
+    for (int x = 0; x < resolution; ++x) {
+      MetaTexel& t = m.texels[size_t(y) * size_t(resolution) + size_t(x)];
+      const int dx = wrap_delta(cx - x), dy = wrap_delta(cy - y);
+      t.variation = variation;
+      if (std::abs(dx) <= side / 2 && std::abs(dy) <= side / 2) {
+        t.d = 1;
+        t.f = 200;
+        t.dx = int16_t(dx);
+        t.dy = int16_t(dy);
+      }
+    }
+  return m;
+}
+
+}  // namespace tvt::test

@@ -1,0 +1,30 @@
+// Small hand-made scenes for equation tests: constant-colour materials, constant or
+// hand-set weights, hand-made meta-textures. Independent of the loaders and generators.
+#pragma once
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "compose/packed_scene.h"
+#include "compose/scene_assets.h"
+
+namespace tvt::test {
+
+struct SyntheticMaterial {
+  std::array<uint8_t, 4> rgba{128, 128, 128, 128};  // constant texel value (A = height)
+  float weight = 0.f;                                // constant weight (ignored for the base: remainder)
+  Mode mode = Mode::BlendMap;
+  int resolution = 16;
+};
+
+// V = 2^log2_vt, P = 16, B = 2, a 4x4 weight grid; material 0 is the base with remainder weight.
+SceneAssets make_synthetic_assets(const std::vector<SyntheticMaterial>& materials, uint32_t log2_vt = 10);
+
+// A meta-texture with one square feature per tile of `side` texels centred at (cx, cy),
+// wrapping on the torus; f = 200 inside, 0 outside; variation = `variation` everywhere.
+MetaTexture square_feature_meta(int resolution, int cx, int cy, int side, uint8_t variation = 255);
+
+// Sets every weight-grid texel of `layer` to `value`.
+void set_weight(SceneAssets& assets, int layer, float value);
+
+}  // namespace tvt::test

@@ -1,0 +1,302 @@
+// Equation-level tests of the CPU reference compositor on hand-made scenes.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "compose/reference_compositor.h"
+#include "shaders/shared/hash.h"
+#include "support/synthetic_scene.h"
+
+using namespace tvt;
+using test::SyntheticMaterial;
+
+namespace {
+
+constexpr int64_t fp(int64_t texel) { return texel * 256 + 128; }  // level-0 texel centre
+
+glm::dvec4 at(const PackedScene& s, int64_t x, int64_t y, double footprint = 1.0) {
+  return compose_sample_reference(s, fp(x), fp(y), footprint);
+}
+
+PackedScene pack(const SceneAssets& a, ComposeOptions o = {}) {
+  auto p = pack_scene(a, o);
+  EXPECT_TRUE(p.ok()) << (p.ok() ? "" : p.error().message);
+  return std::move(p).value();
+}
+
+double blend_map(double b, double a, double s) {
+  const double e0 = 1 - b - s, e1 = 1 - b + s, x = s + a * (1 - 2 * s);
+  const double t = std::clamp((x - e0) / (e1 - e0), 0.0, 1.0);
+  return t * t * (3 - 2 * t);
+}
+
+const SyntheticMaterial k_base{{200, 0, 0, 100}, 0.f, Mode::BlendMap};
+
+}  // namespace
+
+TEST(Linear, NormalisedAverageWithoutBoost) {
+  auto a = test::make_synthetic_assets({k_base, {{0, 200, 0, 50}, 0.75f, Mode::Linear}});
+  const PackedScene s = pack(a);
+  const glm::dvec4 c = at(s, 100, 100);
+  EXPECT_NEAR(c.r, 0.25 * 200 / 255.0, 1e-9);
+  EXPECT_NEAR(c.g, 0.75 * 200 / 255.0, 1e-9);
+  EXPECT_NEAR(c.a, (0.25 * 100 + 0.75 * 50) / 255.0, 1e-9);
+}
+
+TEST(Linear, BoostFollowsBloomThenClamps) {
+  auto a = test::make_synthetic_assets({k_base, {{0, 200, 0, 50}, 0.3f, Mode::Linear}});
+  a.desc.linear_boost = 1.5;
+  PackedScene s = pack(a);
+  // b = min(1, 1.5 * 0.3 / (0.7 + 0.3)) = 0.45
+  EXPECT_NEAR(at(s, 7, 9).g, 0.45 * 200 / 255.0, 1e-6);
+  test::set_weight(a, 1, 0.8f);
+  test::set_weight(a, 0, 0.2f);
+  s = pack(a);
+  EXPECT_NEAR(at(s, 7, 9).g, 200 / 255.0, 1e-9);  // 1.5 * 0.8 > 1: clamped, fully opaque
+}
+
+TEST(BlendMap, MatchesFormulaAndIsMonotone) {
+  for (double h : {0.0, 0.3, 0.5, 1.0}) {
+    double previous = -1;
+    for (float p : {0.f, 0.1f, 0.25f, 0.5f, 0.75f, 0.9f, 1.f}) {
+      auto a = test::make_synthetic_assets({k_base, {{0, 255, 0, uint8_t(h * 255)}, p, Mode::BlendMap}});
+      const PackedScene s = pack(a);
+      const double g = at(s, 3, 3).g;
+      EXPECT_NEAR(g, blend_map(p, h, 0.1), 1e-6) << "p=" << p << " h=" << h;
+      EXPECT_GE(g, previous - 1e-12);
+      previous = g;
+    }
+  }
+  // 0 at b = 0 and 1 at b = 1 whatever the height.
+  auto a0 = test::make_synthetic_assets({k_base, {{0, 255, 0, 255}, 0.f, Mode::BlendMap}});
+  EXPECT_EQ(at(pack(a0), 1, 1).g, 0.0);
+  auto a1 = test::make_synthetic_assets({k_base, {{0, 255, 0, 0}, 1.f, Mode::BlendMap}});
+  EXPECT_NEAR(at(pack(a1), 1, 1).g, 1.0, 1e-12);
+}
+
+// FBPB: material 1 has one 5x5 square feature centred on material texel (8, 8) of 16; period
+// 64 level-0 texels -> 4 level-0 texels per material texel.
+class Fbpb : public ::testing::Test {
+ protected:
+  SceneAssets make(float p, double cf = 1.0, uint8_t variation = 255) {
+    auto a = test::make_synthetic_assets({k_base, {{0, 250, 0, 200}, p, Mode::Fbpb}});
+    a.materials[1].meta = test::square_feature_meta(16, 8, 8, 5, variation);
+    a.desc.materials[1].has_fbpb = true;
+    a.desc.materials[1].fbpb.cf = cf;
+    return a;
+  }
+  // Global material-texel centroid of the feature in tile (tx, ty).
+  static uint32_t feature_hash(const PackedScene& s, int64_t tx, int64_t ty) {
+    return gpu::tvt_hash_coord(tx * 16 + 8, ty * 16 + 8, s.params.materials[1].fbpb_salt);
+  }
+};
+
+TEST_F(Fbpb, FullWeightShowsEveryFeatureOpaque) {
+  const PackedScene s = pack(make(1.f));
+  // Feature texel (material texel 8 = level-0 texels 32..35 of each 64 tile).
+  EXPECT_NEAR(at(s, 33, 33).g, 250 / 255.0, 1e-9);         // w = min(Cm*max(p,f),1) = 1
+  EXPECT_NEAR(at(s, 64 * 5 + 33, 64 * 7 + 34).g, 250 / 255.0, 1e-9);
+  // Non-feature texel: w = (1-d) p Cn = 1.
+  EXPECT_NEAR(at(s, 2, 2).g, 250 / 255.0, 1e-9);
+}
+
+TEST_F(Fbpb, Equation31PerFeatureDecision) {
+  const float p = 0.3f;
+  const PackedScene s = pack(make(p));
+  int shown = 0;
+  for (int64_t ty = 0; ty < 16; ++ty)
+    for (int64_t tx = 0; tx < 16; ++tx) {
+      const double r = gpu::tvt_rand01(feature_hash(s, tx, ty));
+      const bool visible = r <= double(p) * 1.0;
+      shown += visible;
+      const double f = 200 / 255.0;
+      const double w = visible ? std::min(1.5 * std::max(double(p), f), 1.0) : 0.0;  // d = 1: (1-d)pCn = 0
+      // Every texel of the feature agrees (all share p and r).
+      for (int64_t dy : {-8, 0, 9})
+        for (int64_t dx : {-8, 1, 9}) {
+          const glm::dvec4 c = at(s, tx * 64 + 34 + dx, ty * 64 + 34 + dy);
+          EXPECT_NEAR(c.g, w * 250 / 255.0, 1e-6) << tx << "," << ty;
+        }
+      // Non-feature texel of that tile: w = p * Cn.
+      EXPECT_NEAR(at(s, tx * 64 + 2, ty * 64 + 2).g, double(p) * 250 / 255.0, 1e-6);
+    }
+  EXPECT_GT(shown, 256 * 0.15);  // about p of the features show
+  EXPECT_LT(shown, 256 * 0.45);
+}
+
+TEST_F(Fbpb, CfScalesVisibilityAndZeroWeightHidesAll) {
+  const PackedScene none = pack(make(0.f));
+  for (int64_t t = 0; t < 16; ++t) EXPECT_EQ(at(none, t * 64 + 33, 33).g, 0.0);
+  const PackedScene all = pack(make(0.5f, 2.0));  // p*Cf = 1 >= every r
+  for (int64_t t = 0; t < 16; ++t) EXPECT_NEAR(at(all, t * 64 + 33, 97).g, 250 / 255.0, 1e-9);
+}
+
+TEST_F(Fbpb, VariationChipsVisibleFeatures) {
+  // Variation 0 everywhere: every visible feature with p < 1 is chipped: d <- 0, colour * Cc,
+  // w = p * Cn, and it no longer counts as visible.
+  const PackedScene s = pack(make(0.5f, 2.0, 0));
+  EXPECT_NEAR(at(s, 33, 33).g, 0.5 * 0.75 * 250 / 255.0, 1e-6);
+  // At p = 1 variations do not apply (Algorithm 1 only for p < 1).
+  const PackedScene full = pack(make(1.f, 1.0, 0));
+  EXPECT_NEAR(at(full, 33, 33).g, 250 / 255.0, 1e-9);
+}
+
+TEST_F(Fbpb, PrecedenceKeepsLowerVisibleFeatures) {
+  auto a = make(1.f);
+  // A higher non-feature layer at full weight over every texel.
+  a.desc.materials.push_back(a.desc.materials[0]);
+  a.desc.materials.back().weight.kind = WeightDesc::Kind::Rule;
+  a.desc.materials.back().mode = Mode::BlendMap;
+  ImageRGBA8 blue(16, 16);
+  for (size_t t = 0; t < blue.texels.size(); t += 4) blue.texels[t + 2] = 240, blue.texels[t + 3] = 255;
+  MaterialAssets m;
+  m.albedo = build_mip_chain(blue);
+  a.materials.push_back(std::move(m));
+  a.weights.layers = 3;
+  a.weights.data.resize(48, 0.f);
+  test::set_weight(a, 2, 1.f);
+  const PackedScene s = pack(a);
+  const glm::dvec4 feature = at(s, 33, 33), mortar = at(s, 2, 2);
+  EXPECT_NEAR(feature.g, 250 / 255.0, 1e-9);  // the cobble stays on top
+  EXPECT_EQ(feature.b, 0.0);
+  EXPECT_NEAR(mortar.b, 240 / 255.0, 1e-9);   // non-feature texels are covered
+}
+
+// DPT on a constant weight: the patch mask at corners, bilinear in between.
+class Dpt : public ::testing::Test {
+ protected:
+  SceneAssets make(float p, std::vector<DptLayerDesc> layers) {
+    auto a = test::make_synthetic_assets({k_base, {{0, 255, 0, 128}, p, Mode::Dpt}});
+    a.desc.materials[1].dpt.layers = std::move(layers);
+    a.desc.materials[1].blend_sharpness = 0.1;
+    return a;
+  }
+};
+
+TEST_F(Dpt, FullAndZeroWeight) {
+  const PackedScene one = pack(make(1.f, {{32, 1, 1, 1, 0.5}}));
+  EXPECT_NEAR(at(one, 5, 70).g, 1.0, 1e-9);
+  EXPECT_NEAR(at(one, 5, 70).a, 0.5, 1e-9);  // h = min(w H, 1) goes to the height channel
+  const PackedScene zero = pack(make(0.f, {{32, 1, 1, 1, 0.5}}));
+  EXPECT_EQ(at(zero, 5, 70).g, 0.0);
+}
+
+TEST_F(Dpt, CornersAndBilinearWeights) {
+  const float p = 0.5f;
+  const PackedScene s = pack(make(p, {{32, 1, 1, 1, 1.0}}));
+  const uint32_t salt = s.params.materials[1].dpt[0].salt;
+  auto mask = [&](int64_t jx, int64_t jy) { return gpu::tvt_rand01(gpu::tvt_hash_coord(jx, jy, salt)) <= p ? 1.0 : 0.0; };
+  int on = 0;
+  for (int64_t j = 0; j < 20; ++j)
+    for (int64_t i = 0; i < 20; ++i) {
+      // Exactly at patch origin (i*32, j*32) in fixed point: f = 0 -> the corner's mask.
+      const glm::dvec4 c = compose_sample_reference(s, i * 32 * 256, j * 32 * 256, 1.0);
+      const double m = mask(i, j);
+      on += int(m);
+      EXPECT_NEAR(c.g, blend_map(m, 128 / 255.0, 0.1), 1e-6);
+      // Patch middle: f = (0.5, 0.5): average of the four corners.
+      const glm::dvec4 mid = compose_sample_reference(s, (i * 32 + 16) * 256, (j * 32 + 16) * 256, 1.0);
+      const double avg = (mask(i, j) + mask(i + 1, j) + mask(i, j + 1) + mask(i + 1, j + 1)) / 4;
+      EXPECT_NEAR(mid.g, blend_map(avg, 128 / 255.0, 0.1), 1e-6);
+      // Height: h = min(w * H, 1) mixed by b.
+      const double b = blend_map(avg, 128 / 255.0, 0.1);
+      EXPECT_NEAR(mid.a, (128 / 255.0) * (1 - b) + avg * b, 1e-6);
+    }
+  EXPECT_GT(on, 120);
+  EXPECT_LT(on, 280);
+}
+
+TEST_F(Dpt, ExponentsShapeTheMask) {
+  // P: p^P; with P -> large, p = 0.5 gives p_j ~ 0 -> no patches; R -> large makes r^R ~ 0 -> all.
+  const PackedScene none = pack(make(0.5f, {{32, 1000, 1, 1, 0}}));
+  const PackedScene all = pack(make(0.5f, {{32, 1, 1000, 1, 0}}));
+  double sum_none = 0, sum_all = 0;
+  for (int64_t i = 0; i < 50; ++i) {
+    sum_none += at(none, i * 13, i * 7).g;
+    sum_all += at(all, i * 13, i * 7).g;
+  }
+  EXPECT_LT(sum_none, 1e-6);
+  EXPECT_NEAR(sum_all, 50.0, 1e-6);
+  // W = 1e3 sharpens: interior bilinear values < 1 go to ~0; W = 1e-3 lifts them to ~1.
+  const PackedScene sharp = pack(make(0.5f, {{32, 1, 1, 1000, 0}}));
+  const PackedScene soft = pack(make(0.5f, {{32, 1, 1, 0.001, 0}}));
+  for (int64_t i = 0; i < 30; ++i) {
+    const double g_sharp = compose_sample_reference(sharp, (i * 32 + 16) * 256, 16 * 256, 1.0).g;
+    const double g_soft = compose_sample_reference(soft, (i * 32 + 16) * 256, 16 * 256, 1.0).g;
+    EXPECT_TRUE(g_sharp < 1e-3 || g_sharp > 1 - 1e-3);
+    EXPECT_TRUE(g_soft < 1e-3 || g_soft > 1 - 1e-3);
+  }
+}
+
+TEST_F(Dpt, MinificationFadesToThePlainBlend) {
+  const float p = 0.4f;
+  const PackedScene s = pack(make(p, {{8, 1, 1, 1, 0.5}}));  // 8-texel patches, fade 2..8 texels
+  const double plain = blend_map(p, 128 / 255.0, 0.1);
+  // footprint 8 level-0 texels: a patch spans 1 texel < fade_lo -> plain blend map.
+  EXPECT_NEAR(compose_sample_reference(s, fp(100), fp(100), 8.0).g, plain, 1e-9);
+  // footprint 2: 4 texels per patch -> fade a = (4-2)/(8-2) = 1/3 on both the layer and the result.
+  const uint32_t salt = s.params.materials[1].dpt[0].salt;
+  auto mask = [&](int64_t jx, int64_t jy) { return gpu::tvt_rand01(gpu::tvt_hash_coord(jx, jy, salt)) <= p ? 1.0 : 0.0; };
+  const double f = (100.5 - 96.0) / 8.0;  // texel 100 in patch 12
+  const double w = (mask(12, 12) * (1 - f) + mask(13, 12) * f) * (1 - f) + (mask(12, 13) * (1 - f) + mask(13, 13) * f) * f;
+  const double a = 1.0 / 3.0;
+  const double expected = a * blend_map(a * w, 128 / 255.0, 0.1) + (1 - a) * plain;
+  EXPECT_NEAR(compose_sample_reference(s, fp(100), fp(100), 2.0).g, expected, 1e-6);
+  // footprint 1: 8 texels per patch -> fully DPT.
+  EXPECT_NEAR(compose_sample_reference(s, fp(100), fp(100), 1.0).g, blend_map(w, 128 / 255.0, 0.1), 1e-6);
+}
+
+TEST(Extremes, NoNaNAnywhere) {
+  for (double patch : {0.001, 0.5, 1.0, 3.0, 1e9}) {
+    for (double e : {1e-3, 1.0, 1e3}) {
+      for (float p : {0.f, std::ldexp(1.f, -24), 0.5f, 1.f}) {
+        auto a = test::make_synthetic_assets({k_base, {{10, 20, 30, 40}, p, Mode::FbpbDpt}}, 24);
+        a.materials[1].meta = test::square_feature_meta(16, 0, 0, 7, 100);
+        a.desc.materials[1].has_fbpb = true;
+        a.desc.materials[1].period_texels = 1.0;  // tiling period of one texel
+        a.desc.materials[1].dpt.layers = {{patch, e, e, e, e}, {patch * 3, e, e, e, 1e6}};
+        const PackedScene s = pack(a);
+        const int64_t far = (int64_t(1) << 24) - 1;
+        for (uint32_t mip : {0u, 3u, 17u})
+          for (int64_t x : {int64_t(0), far >> mip}) {
+            const glm::dvec4 c = compose_texel_reference(s, mip, x, x);
+            for (int i = 0; i < 4; ++i) {
+              EXPECT_TRUE(std::isfinite(c[i])) << patch << " " << e << " " << p;
+              EXPECT_GE(c[i], 0.0);
+              EXPECT_LE(c[i], 1.0);
+            }
+          }
+      }
+    }
+  }
+}
+
+TEST(Extremes, NonFiniteWeightsReadAsZero) {
+  auto a = test::make_synthetic_assets({k_base, {{0, 250, 0, 0}, 0.f, Mode::Linear}});
+  test::set_weight(a, 1, std::nanf(""));
+  test::set_weight(a, 0, std::numeric_limits<float>::infinity());
+  const glm::dvec4 c = at(pack(a), 3, 3);
+  for (int i = 0; i < 4; ++i) EXPECT_TRUE(std::isfinite(c[i]));
+  EXPECT_EQ(c.g, 0.0);
+}
+
+TEST(Pages, DeterministicAndBordersMatchNeighbours) {
+  auto a = test::make_synthetic_assets({k_base, {{0, 250, 0, 200}, 0.5f, Mode::FbpbDpt}});
+  a.materials[1].meta = test::square_feature_meta(16, 3, 5, 5, 60);
+  a.desc.materials[1].has_fbpb = true;
+  a.desc.materials[1].dpt.layers = {{24, 1, 1, 1, 0.5}, {6, 0.5, 1.5, 1, 0.2}};
+  // Non-constant weights so neighbouring pages differ.
+  for (size_t i = 0; i < 16; ++i) a.weights.data[16 + i] = float(i % 5) / 4.f;
+  const PackedScene s = pack(a);
+  const PageId p0{1, 3, 4}, p1{1, 4, 4};
+  const auto first = compose_page_reference(s, p0);
+  EXPECT_EQ(first, compose_page_reference(s, p0));
+  const auto right = compose_page_reference(s, p1);
+  const int P = 16, B = 2, S = P + 2 * B;
+  for (int y = 0; y < S; ++y)
+    for (int bx = 0; bx < B; ++bx) {
+      // Right border of p0 (x = B + P + bx) equals p1's interior column bx + B.
+      for (int c = 0; c < 4; ++c)
+        EXPECT_EQ(first[size_t((y * S + B + P + bx) * 4 + c)], right[size_t((y * S + B + bx) * 4 + c)]);
+    }
+}
