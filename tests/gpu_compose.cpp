@@ -1,0 +1,116 @@
+// GPU compute composition against the CPU reference (validation layers on).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <map>
+
+#include "compose/packed_scene.h"
+#include "compose/reference_compositor.h"
+#include "compose/region.h"
+#include "compose/scene.h"
+#include "render/gpu_composer.h"
+#include "support/gpu_test.h"
+
+using namespace tvt;
+
+namespace {
+
+const SceneAssets& default_assets(uint32_t log2_vt) {
+  static std::map<uint32_t, SceneAssets> cache;
+  auto it = cache.find(log2_vt);
+  if (it == cache.end()) {
+    SceneDesc d = default_scene();
+    d.vt.log2_size = log2_vt;
+    auto a = load_scene_assets(d);
+    EXPECT_TRUE(a.ok()) << (a.ok() ? "" : a.error().message);
+    it = cache.emplace(log2_vt, std::move(a.value())).first;
+  }
+  return it->second;
+}
+
+struct Agreement {
+  size_t channels = 0, within_one = 0;
+  int max_diff = 0;
+};
+
+Agreement compare(const std::vector<uint8_t>& a, const std::vector<uint8_t>& b) {
+  Agreement r;
+  r.channels = a.size();
+  for (size_t i = 0; i < a.size(); ++i) {
+    const int d = std::abs(int(a[i]) - int(b[i]));
+    r.within_one += d <= 1;
+    r.max_diff = std::max(r.max_diff, d);
+  }
+  return r;
+}
+
+class GpuCompose : public test::GpuTest {
+ protected:
+  // Composes `pages` on the GPU and the CPU; asserts >= 99.9% of channels within 1/255.
+  void expect_agreement(const SceneAssets& assets, const ComposeOptions& options, const std::vector<PageId>& pages,
+                        const std::string& what) {
+    auto packed = pack_scene(assets, options);
+    ASSERT_TRUE(packed.ok()) << packed.error().message;
+    auto composer = GpuComposer::create(context(), packed.value(), 8);
+    ASSERT_TRUE(composer.ok()) << composer.error().message;
+    const auto gpu_pages = composer.value()->compose_pages(pages);
+    ASSERT_EQ(gpu_pages.size(), pages.size());
+    Agreement total;
+    for (size_t i = 0; i < pages.size(); ++i) {
+      const auto cpu = compose_page_reference(packed.value(), pages[i]);
+      const Agreement a = compare(cpu, gpu_pages[i]);
+      total.channels += a.channels;
+      total.within_one += a.within_one;
+      total.max_diff = std::max(total.max_diff, a.max_diff);
+    }
+    const double fraction = double(total.within_one) / double(total.channels);
+    EXPECT_GE(fraction, 0.999) << what << ": max difference " << total.max_diff << "/255";
+    RecordProperty(what, std::to_string(fraction));
+  }
+};
+
+}  // namespace
+
+TEST_F(GpuCompose, MatchesReferenceForEveryMethodOnTheDefaultScene) {
+  const SceneAssets& assets = default_assets(16);
+  const Region region = interesting_region(assets, 0, 256, 256);
+  std::vector<PageId> pages = pages_covering(assets.desc.vt, region);
+  pages.resize(std::min<size_t>(pages.size(), 3));
+  pages.push_back(PageId{3, 5, 9});
+  for (Method m : k_all_methods) expect_agreement(assets, options_for(m), pages, std::string(to_string(m)));
+}
+
+TEST_F(GpuCompose, MatchesReferenceAtTheFarCornerOf2To24) {
+  const SceneAssets& assets = default_assets(24);
+  const uint32_t last = uint32_t(assets.desc.vt.pages_per_side(0) - 1);
+  const std::vector<PageId> pages = {{0, 0, 0}, {0, last, last}, {0, last - 1, last}, {4, 4095, 4095}};
+  expect_agreement(assets, options_for(Method::FbpbDpt), pages, "fbpb+dpt2 far corner");
+  expect_agreement(assets, options_for(Method::Dpt2), pages, "dpt2 far corner");
+}
+
+TEST_F(GpuCompose, SupersampledMipsMatchReference) {
+  const SceneAssets& assets = default_assets(16);
+  ComposeOptions o = options_for(Method::FbpbDpt);
+  o.supersample = 4;
+  expect_agreement(assets, o, {{2, 20, 30}, {5, 1, 1}}, "supersample 4");
+}
+
+TEST_F(GpuCompose, PagesAreDeterministicAndBordersMatchNeighbours) {
+  const SceneAssets& assets = default_assets(16);
+  auto packed = pack_scene(assets, options_for(Method::FbpbDpt));
+  ASSERT_TRUE(packed.ok());
+  auto composer = GpuComposer::create(context(), packed.value(), 4);
+  ASSERT_TRUE(composer.ok());
+  const std::vector<PageId> pages = {{0, 100, 200}, {0, 101, 200}, {0, 100, 201}};
+  const auto first = composer.value()->compose_pages(pages);
+  const auto again = composer.value()->compose_pages(pages);
+  EXPECT_EQ(first, again);
+  const int P = int(assets.desc.vt.page_texels), B = int(assets.desc.vt.border_texels), S = P + 2 * B;
+  for (int y = 0; y < S; ++y)
+    for (int b = 0; b < B; ++b)
+      for (int c = 0; c < 4; ++c) {
+        EXPECT_EQ(first[0][size_t((y * S + B + P + b) * 4 + c)], first[1][size_t((y * S + B + b) * 4 + c)]);
+        EXPECT_EQ(first[0][size_t(((B + P + b) * S + y) * 4 + c)], first[2][size_t(((B + b) * S + y) * 4 + c)]);
+      }
+}
