@@ -7,6 +7,13 @@
 // Validation: ContextOptions::validation or TERRAVT_VALIDATION=1 enables
 // VK_LAYER_KHRONOS_validation with a debug-utils messenger that counts and records every
 // warning and error message; tests fail when validation_messages() is non-empty.
+//
+// Lifetime: every Buffer, Image, ComputePipeline and DescriptorSet holds the context's
+// VkDevice and must be destroyed (or moved from) before its Context is destroyed.
+// Thread-safety: create_* and validation_messages()/clear_validation_messages() may be
+// called from any thread; run_commands(), upload() and wait_idle() use the queue and the
+// context's command pool, so callers serialise them with each other and with any other use
+// of queue() (Vulkan external synchronisation).
 #pragma once
 #include <vulkan/vulkan.h>
 
@@ -57,7 +64,8 @@ class Buffer {
   void reset();
 };
 
-// A 2D (array) image with its own memory and a default view of all layers.
+// A 2D (array) image with its own memory and a default view of all layers (created when the
+// usage allows a view: sampled, storage or attachment; otherwise view() is VK_NULL_HANDLE).
 class Image {
  public:
   Image() = default;
@@ -83,6 +91,7 @@ class Image {
   VkDeviceMemory memory_ = VK_NULL_HANDLE;
   VkFormat format_ = VK_FORMAT_UNDEFINED;
   uint32_t width_ = 0, height_ = 0, layers_ = 0;
+  bool synchronization2_ = false;  // the device has synchronization2 on (transition() uses it)
   void reset();
 };
 
@@ -112,10 +121,12 @@ class ComputePipeline {
   VkPipeline pipeline_ = VK_NULL_HANDLE;
   VkPipelineLayout layout_ = VK_NULL_HANDLE;
   VkDescriptorSetLayout set_layout_ = VK_NULL_HANDLE;
+  std::vector<ComputeBinding> bindings_;  // sizes the pool of each DescriptorSet
   void reset();
 };
 
-// One descriptor set from a pool owned by the set itself; write() binds resources.
+// One descriptor set from a pool owned by the set itself; write_*() binds resources. Writes
+// must not happen while a submitted command buffer that uses the set is still pending.
 class DescriptorSet {
  public:
   DescriptorSet() = default;
@@ -126,6 +137,7 @@ class DescriptorSet {
   ~DescriptorSet();
 
   VkDescriptorSet handle() const { return set_; }
+  // type: VK_DESCRIPTOR_TYPE_STORAGE_BUFFER or VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER; whole buffer.
   void write_buffer(uint32_t binding, VkDescriptorType type, const Buffer& buffer);
   void write_storage_image(uint32_t binding, const Image& image);  // layout GENERAL
 
@@ -135,6 +147,23 @@ class DescriptorSet {
   VkDescriptorPool pool_ = VK_NULL_HANDLE;
   VkDescriptorSet set_ = VK_NULL_HANDLE;
   void reset();
+};
+
+// Device features, queried and enabled when supported. Mandatory (create() fails without
+// them): shader_int64 (composition uses 64-bit integer texel coordinates, DESIGN §3) and
+// maintenance4 (required by Vulkan 1.3; glslang emits LocalSizeId when a workgroup size is a
+// constant from shaders/shared/*.h, which needs it).
+struct DeviceFeatures {
+  bool shader_int64 = false;
+  bool maintenance4 = false;                // Vulkan 1.3
+  bool shader_int8 = false;                 // Vulkan 1.2
+  bool storage_buffer_8bit_access = false;  // Vulkan 1.2
+  bool scalar_block_layout = false;         // Vulkan 1.2
+  bool synchronization2 = false;            // Vulkan 1.3
+  bool dynamic_rendering = false;           // Vulkan 1.3
+  bool sampler_anisotropy = false;
+  bool fragment_stores_and_atomics = false;
+  bool vertex_pipeline_stores_and_atomics = false;
 };
 
 class Context {
@@ -152,9 +181,15 @@ class Context {
   const VkPhysicalDeviceProperties& properties() const { return properties_; }
   std::string device_name() const { return properties_.deviceName; }
   bool validation_enabled() const { return validation_; }
+  const DeviceFeatures& features() const { return features_; }  // what is enabled on device()
 
-  // Every validation (and other debug-utils warning/error) message since creation.
+  // Every validation (and other debug-utils warning/error) message since creation or since
+  // the last clear_validation_messages().
   std::vector<std::string> validation_messages() const;
+  void clear_validation_messages();
+
+  // vkDeviceWaitIdle: everything submitted to the device has finished.
+  void wait_idle();
 
   // host_visible: HOST_VISIBLE|HOST_COHERENT memory, mapped; else DEVICE_LOCAL.
   Buffer create_buffer(VkDeviceSize size, VkBufferUsageFlags usage, bool host_visible);
@@ -170,7 +205,9 @@ class Context {
   // Uploads bytes into a (device-local) buffer through a staging buffer.
   void upload(const Buffer& dst, const void* data, VkDeviceSize bytes, VkDeviceSize dst_offset = 0);
 
-  // Layout transition helper (full pipeline barrier on the given image, all layers).
+  // Layout transition helper (full pipeline barrier on the given image, all layers): all
+  // earlier commands' writes are made visible to all later commands. Records
+  // vkCmdPipelineBarrier2 when the device has synchronization2 on, else vkCmdPipelineBarrier.
   static void transition(VkCommandBuffer cmd, const Image& image, VkImageLayout from, VkImageLayout to);
 
   struct Messages;  // validation message sink (implementation detail)
@@ -187,6 +224,7 @@ class Context {
   VkPhysicalDeviceProperties properties_{};
   VkPhysicalDeviceMemoryProperties memory_properties_{};
   bool validation_ = false;
+  DeviceFeatures features_{};
   std::unique_ptr<Messages> messages_;
 };
 

@@ -1,0 +1,75 @@
+#include "support/gpu_test.h"
+
+#include <memory>
+#include <mutex>
+
+namespace tvt {
+namespace {
+
+struct Shared {
+  std::once_flag once;
+  std::unique_ptr<vk::Context> context;
+  std::string error;
+};
+
+Shared& shared() {
+  static Shared s;
+  return s;
+}
+
+// Destroys the shared context after the last test, while the Vulkan loader and driver are
+// still fully alive (static destruction order across libraries is unspecified).
+class SharedContextEnvironment : public ::testing::Environment {
+ public:
+  void TearDown() override {
+    if (shared().context) {
+      expect_no_validation_messages(*shared().context);
+      shared().context.reset();
+    }
+  }
+};
+
+[[maybe_unused]] ::testing::Environment* const g_environment =
+    ::testing::AddGlobalTestEnvironment(new SharedContextEnvironment);
+
+}  // namespace
+
+vk::Context* shared_gpu_context() {
+  Shared& s = shared();
+  std::call_once(s.once, [&] {
+    vk::ContextOptions options;
+    options.validation = true;
+    auto created = vk::Context::create(options);
+    if (created) {
+      s.context = std::move(created).value();
+    } else {
+      s.error = created.error().message;
+    }
+  });
+  return s.context.get();
+}
+
+const std::string& shared_gpu_context_error() {
+  shared_gpu_context();
+  return shared().error;
+}
+
+void expect_no_validation_messages(vk::Context& ctx) {
+  const std::vector<std::string> messages = ctx.validation_messages();
+  ctx.clear_validation_messages();
+  if (messages.empty()) return;
+  std::string all;
+  for (const std::string& m : messages) all += "\n  " + m;
+  ADD_FAILURE() << messages.size() << " Vulkan validation message(s):" << all;
+}
+
+void GpuTest::SetUp() {
+  ctx_ = shared_gpu_context();
+  if (!ctx_) GTEST_FAIL() << "no usable Vulkan context: " << shared_gpu_context_error();
+}
+
+void GpuTest::TearDown() {
+  if (ctx_) expect_no_validation_messages(*ctx_);
+}
+
+}  // namespace tvt

@@ -1,0 +1,36 @@
+// GoogleTest support for GPU tests: one Vulkan context (validation on) shared by every test of
+// the binary, and a fixture that fails a test when validation recorded anything during it.
+// GPU tests are never skipped: CI runs them on lavapipe (mesa-vulkan-drivers).
+#pragma once
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "render/vk_context.h"
+
+namespace tvt {
+
+// The shared context: created on first call with ContextOptions::validation = true, destroyed
+// by a global test environment after the last test (so before static destructors run).
+// nullptr when creation failed; shared_gpu_context_error() then says why.
+vk::Context* shared_gpu_context();
+const std::string& shared_gpu_context_error();
+
+// Adds a test failure listing every message `ctx` recorded, then clears them, so one bad test
+// does not fail the next. Use it for extra contexts a test creates itself.
+void expect_no_validation_messages(vk::Context& ctx);
+
+// Fixture for GPU tests. SetUp fails the test (GTEST_FAIL, not skip) when there is no usable
+// Vulkan device; TearDown calls expect_no_validation_messages() on the shared context.
+// Every Buffer/Image/pipeline a test creates must be destroyed before the test ends.
+class GpuTest : public ::testing::Test {
+ protected:
+  void SetUp() override;
+  void TearDown() override;
+  vk::Context& ctx() { return *ctx_; }
+
+ private:
+  vk::Context* ctx_ = nullptr;
+};
+
+}  // namespace tvt
