@@ -45,14 +45,14 @@ Agreement compare(const std::vector<uint8_t>& a, const std::vector<uint8_t>& b) 
   return r;
 }
 
-class GpuCompose : public test::GpuTest {
+class GpuCompose : public GpuTest {
  protected:
   // Composes `pages` on the GPU and the CPU; asserts >= 99.9% of channels within 1/255.
   void expect_agreement(const SceneAssets& assets, const ComposeOptions& options, const std::vector<PageId>& pages,
                         const std::string& what) {
     auto packed = pack_scene(assets, options);
     ASSERT_TRUE(packed.ok()) << packed.error().message;
-    auto composer = GpuComposer::create(context(), packed.value(), 8);
+    auto composer = GpuComposer::create(ctx(), packed.value(), 8);
     ASSERT_TRUE(composer.ok()) << composer.error().message;
     const auto gpu_pages = composer.value()->compose_pages(pages);
     ASSERT_EQ(gpu_pages.size(), pages.size());
@@ -100,7 +100,7 @@ TEST_F(GpuCompose, PagesAreDeterministicAndBordersMatchNeighbours) {
   const SceneAssets& assets = default_assets(16);
   auto packed = pack_scene(assets, options_for(Method::FbpbDpt));
   ASSERT_TRUE(packed.ok());
-  auto composer = GpuComposer::create(context(), packed.value(), 4);
+  auto composer = GpuComposer::create(ctx(), packed.value(), 4);
   ASSERT_TRUE(composer.ok());
   const std::vector<PageId> pages = {{0, 100, 200}, {0, 101, 200}, {0, 100, 201}};
   const auto first = composer.value()->compose_pages(pages);
