@@ -197,17 +197,29 @@ class CellSites {
     out.site = idx[size_t(best)];
     out.distance = std::sqrt(best_d2);
     const glm::vec2 s = pos[size_t(best)];
+    // Bisector distances. A site at distance d_k from q has its bisector with the nearest
+    // site at least (d_k - d_best) / 2 away, so the outer ring is skipped once that bound
+    // exceeds what the inner ring found (plus the soft-min window).
     std::array<float, 25> bis;
+    bis.fill(INFINITY);
     float min_bis = INFINITY;
-    for (size_t k = 0; k < 25; ++k) {
-      if (int(k) == best) {
-        bis[k] = INFINITY;
-        continue;
+    const float d_best = std::sqrt(best_d2);
+    for (int pass = 0; pass < 2; ++pass) {
+      const float reach = d_best + 2.f * (min_bis + 6.f * soft_k);
+      const float reach2 = reach * reach;
+      for (size_t k = 0; k < 25; ++k) {
+        const int kx = int(k % 5) - 2, ky = int(k / 5) - 2;
+        const bool inner = std::abs(kx) <= 1 && std::abs(ky) <= 1;
+        if (int(k) == best || inner != (pass == 0)) continue;
+        const glm::vec2 e = pos[k] - s;
+        if (pass == 1) {
+          const glm::vec2 dq = pos[k] - q;
+          if (glm::dot(dq, dq) >= reach2) continue;
+        }
+        const float len = glm::length(e);
+        bis[k] = len > 0.f ? glm::dot((s + pos[k]) * 0.5f - q, e) / len : INFINITY;
+        min_bis = std::min(min_bis, bis[k]);
       }
-      const glm::vec2 e = pos[k] - s;
-      const float len = glm::length(e);
-      bis[k] = len > 0.f ? glm::dot((s + pos[k]) * 0.5f - q, e) / len : INFINITY;
-      min_bis = std::min(min_bis, bis[k]);
     }
     out.edge = min_bis;
     out.soft_edge = min_bis;
