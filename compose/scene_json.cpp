@@ -1,0 +1,673 @@
+// Scene files: JSON -> SceneDesc (fully validated) and back. The format is documented in
+// docs/scene-format.md; every rule there is enforced here.
+//
+// Errors: the first problem found is reported as
+//   "<source_path>: <json pointer>: <what is wrong>, got <value>"
+// Inside this file a failed check throws a private Failure that parse_scene turns into a
+// Result; nothing escapes. The parser never writes anything; it only checks that referenced
+// files exist.
+#include <array>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <initializer_list>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "compose/scene.h"
+
+namespace tvt {
+
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+using ojson = nlohmann::ordered_json;
+using Ptr = json::json_pointer;
+
+constexpr double k_inf = std::numeric_limits<double>::infinity();
+constexpr uint32_t k_u32_max = std::numeric_limits<uint32_t>::max();
+constexpr std::array<std::string_view, 6> k_generators{"sand", "grass", "rock", "mud", "cobbles", "bricks"};
+constexpr std::array<char, 4> k_channels{'r', 'g', 'b', 'a'};
+constexpr size_t k_max_materials = 16;
+constexpr size_t k_max_dpt_layers = 4;
+
+struct Failure {
+  std::string message;
+};
+
+std::string show_number(double v) {
+  std::array<char, 40> buf{};
+  const auto r = std::to_chars(buf.data(), buf.data() + buf.size(), v);
+  return std::string(buf.data(), r.ptr);
+}
+
+std::string show_value(const json& v) {
+  std::string s = v.dump(-1, ' ', false, json::error_handler_t::replace);
+  if (s.size() > 80) s = s.substr(0, 77) + "...";
+  return s;
+}
+
+std::string show_pointer(const Ptr& p) {
+  const std::string s = p.to_string();
+  return s.empty() ? "<root>" : s;
+}
+
+std::string strip_nlohmann_prefix(std::string what) {
+  // "[json.exception.parse_error.101] parse error at ..." -> "parse error at ..."
+  if (!what.empty() && what.front() == '[') {
+    const size_t close = what.find("] ");
+    if (close != std::string::npos) what.erase(0, close + 2);
+  }
+  return what;
+}
+
+// Bounds of a real-valued field. `interval` fields are reported as a whole range
+// ("in (0, 0.5]"); the others name only the violated side (so a sanity cap such as 1e6 does
+// not clutter the usual "> 0" message).
+struct Bound {
+  double lo = -k_inf;
+  bool lo_open = false;
+  double hi = k_inf;
+  bool hi_open = false;
+  bool interval = false;
+};
+Bound closed(double lo, double hi) { return {lo, false, hi, false, true}; }
+Bound open_closed(double lo, double hi) { return {lo, true, hi, false, true}; }
+Bound open(double lo, double hi) { return {lo, true, hi, true, true}; }
+Bound above(double lo, double cap = k_inf) { return {lo, true, cap, false, false}; }
+Bound at_least(double lo, double cap = k_inf) { return {lo, false, cap, false, false}; }
+Bound any_finite() { return {}; }
+
+// Builds the DOM like nlohmann's own SAX DOM parser, but knows the JSON pointer of the value
+// being read, so overflowing numbers (1e999) and duplicate keys are reported by field.
+class DomBuilder final : public nlohmann::json_sax<json> {
+ public:
+  explicit DomBuilder(std::string_view text) : text_(text) {}
+
+  json root;
+  std::string error;  // complete message minus the source prefix; empty on success
+
+  bool null() override { return scalar(json(nullptr)); }
+  bool boolean(bool v) override { return scalar(json(v)); }
+  bool number_integer(number_integer_t v) override { return scalar(json(v)); }
+  bool number_unsigned(number_unsigned_t v) override { return scalar(json(v)); }
+  bool number_float(number_float_t v, const string_t&) override { return scalar(json(v)); }
+  bool string(string_t& v) override { return scalar(json(std::move(v))); }
+  bool binary(binary_t& v) override { return scalar(json::binary(std::move(v))); }
+  bool start_object(std::size_t) override { return open(json::object()); }
+  bool start_array(std::size_t) override { return open(json::array()); }
+  bool end_object() override { return close(); }
+  bool end_array() override { return close(); }
+
+  bool key(string_t& k) override {
+    if (stack_.back()->contains(k)) {
+      error = show_pointer(path_ / k) + ": duplicate field \"" + k + "\"";
+      return false;
+    }
+    key_ = std::move(k);
+    have_key_ = true;
+    return true;
+  }
+
+  bool parse_error(std::size_t position, const std::string& token, const nlohmann::detail::exception& ex) override {
+    if (ex.id == 406) {  // number overflow, e.g. 1e999: report it at its field
+      error = show_pointer(current()) + ": number is out of range (" + line_column(position) + "), got " + token;
+    } else {
+      const Ptr at = current();
+      error =
+          (at.empty() ? std::string() : show_pointer(at) + ": ") + "invalid JSON: " + strip_nlohmann_prefix(ex.what());
+    }
+    return false;
+  }
+
+ private:
+  // Pointer of the value about to be read (or of the innermost open container).
+  Ptr current() const {
+    if (stack_.empty()) return path_;
+    if (stack_.back()->is_array()) return path_ / stack_.back()->size();
+    return have_key_ ? path_ / key_ : path_;
+  }
+
+  std::string line_column(size_t position) const {
+    size_t line = 1, column = 0;
+    for (size_t i = 0; i < position && i < text_.size(); ++i) {
+      if (text_[i] == '\n') {
+        ++line;
+        column = 0;
+      } else {
+        ++column;
+      }
+    }
+    return "line " + std::to_string(line) + ", column " + std::to_string(column);
+  }
+
+  json* put(json v) {
+    if (stack_.empty()) {
+      root = std::move(v);
+      return &root;
+    }
+    json& top = *stack_.back();
+    if (top.is_array()) {
+      top.push_back(std::move(v));
+      return &top.back();
+    }
+    have_key_ = false;
+    json& slot = top[key_];
+    slot = std::move(v);
+    return &slot;
+  }
+  bool scalar(json v) {
+    put(std::move(v));
+    return true;
+  }
+
+  bool open(json container) {
+    const Ptr at = current();
+    // A child container is only ever referenced while open; its parent gets no new element
+    // until it is closed, so the pointer stays valid even inside a vector.
+    json* slot = put(std::move(container));
+    stack_.push_back(slot);
+    path_ = stack_.size() == 1 ? Ptr() : at;
+    have_key_ = false;
+    return true;
+  }
+
+  bool close() {
+    stack_.pop_back();
+    if (!path_.empty()) path_ = path_.parent_pointer();
+    have_key_ = false;
+    return true;
+  }
+
+  std::string_view text_;
+  std::vector<json*> stack_;
+  Ptr path_;  // pointer of stack_.back()
+  std::string key_;
+  bool have_key_ = false;
+};
+
+const json* field(const json& object, const char* key) {
+  const auto it = object.find(key);
+  return it == object.end() ? nullptr : &*it;
+}
+
+class Parser {
+ public:
+  Parser(std::string source, std::string base_dir) : source_(std::move(source)), base_dir_(std::move(base_dir)) {}
+
+  SceneDesc scene(const json& root) const {
+    const Ptr at;
+    object(root, at, {"seed", "terrain", "vt", "linear_boost", "materials"});
+    SceneDesc s;
+    s.source_path = source_;
+    s.base_dir = base_dir_;
+    if (const json* f = field(root, "seed")) s.seed = uint(*f, at / "seed", 0, k_u32_max);
+    if (const json* f = field(root, "terrain")) s.terrain = terrain(*f, at / "terrain");
+    if (const json* f = field(root, "vt")) s.vt = vt(*f, at / "vt");
+    const Status vt_ok = validate(s.vt, source_ + ": /vt");
+    if (!vt_ok) throw Failure{vt_ok.error().message};
+    if (const json* f = field(root, "linear_boost")) s.linear_boost = real(*f, at / "linear_boost", closed(1, 4));
+
+    const json& list = require(root, at, "materials");
+    const Ptr list_at = at / "materials";
+    if (!list.is_array()) fail(list_at, "must be an array of 1 to 16 materials", list);
+    if (list.empty() || list.size() > k_max_materials)
+      fail(list_at, "must hold 1 to 16 materials", std::to_string(list.size()) + " materials");
+    for (size_t i = 0; i < list.size(); ++i) {
+      s.materials.push_back(material(list[i], list_at / i, i));
+      for (size_t j = 0; j < i; ++j)
+        if (s.materials[j].name == s.materials[i].name)
+          fail(list_at / i / "name", "duplicate material name (also at /materials/" + std::to_string(j) + "/name)",
+               list[i]["name"]);
+    }
+    return s;
+  }
+
+ private:
+  [[noreturn]] void fail(const Ptr& at, const std::string& what, const std::string& got) const {
+    throw Failure{source_ + ": " + show_pointer(at) + ": " + what + ", got " + got};
+  }
+  [[noreturn]] void fail(const Ptr& at, const std::string& what, const json& got) const {
+    fail(at, what, show_value(got));
+  }
+
+  const json& require(const json& object, const Ptr& at, const char* key) const {
+    const json* f = field(object, key);
+    if (!f) throw Failure{source_ + ": " + show_pointer(at / key) + ": required field is missing"};
+    return *f;
+  }
+
+  // `v` must be an object whose keys are all in `allowed`.
+  void object(const json& v, const Ptr& at, std::initializer_list<std::string_view> allowed) const {
+    std::string names;
+    for (std::string_view a : allowed) names += (names.empty() ? "" : ", ") + std::string(a);
+    if (!v.is_object()) fail(at, "must be an object with fields " + names, v);
+    for (const auto& [key, value] : v.items()) {
+      bool known = false;
+      for (std::string_view a : allowed) known = known || key == a;
+      if (!known) fail(at / key, "unknown field \"" + key + "\" (allowed here: " + names + ")", value);
+    }
+  }
+
+  double real(const json& v, const Ptr& at, const Bound& b) const {
+    const auto side = [&](bool low) {
+      if (low) return std::string(b.lo_open ? "> " : ">= ") + show_number(b.lo);
+      return std::string(b.hi_open ? "< " : "<= ") + show_number(b.hi);
+    };
+    const auto describe = [&](bool low) {
+      std::string d = "must be a finite number";
+      if (b.interval)
+        return d + " in " + (b.lo_open ? "(" : "[") + show_number(b.lo) + ", " + show_number(b.hi) +
+               (b.hi_open ? ")" : "]");
+      if (b.lo > -k_inf && (low || b.hi == k_inf)) return d + " " + side(true);
+      if (b.hi < k_inf) return d + " " + side(false);
+      return d;
+    };
+    if (!v.is_number()) fail(at, describe(true), v);
+    const double d = v.get<double>();
+    if (!std::isfinite(d)) fail(at, describe(true), v);
+    if (d < b.lo || (b.lo_open && d == b.lo)) fail(at, describe(true), v);
+    if (d > b.hi || (b.hi_open && d == b.hi)) fail(at, describe(false), v);
+    return d;
+  }
+
+  // A JSON integer (or an integral float such as 512.0) in [lo, hi].
+  uint32_t uint(const json& v, const Ptr& at, uint32_t lo, uint32_t hi, bool power_of_two = false) const {
+    const std::string what = std::string(power_of_two ? "must be a power of two in [" : "must be an integer in [") +
+                             std::to_string(lo) + ", " + std::to_string(hi) + "]";
+    uint64_t u = 0;
+    if (v.is_number_unsigned()) {
+      u = v.get<uint64_t>();
+    } else if (v.is_number_float()) {
+      const double d = v.get<double>();
+      if (!std::isfinite(d) || d != std::floor(d) || d < 0.0 || d > double(hi)) fail(at, what, v);
+      u = uint64_t(d);
+    } else {
+      fail(at, what, v);  // negative integers, strings, ...
+    }
+    if (u < lo || u > hi) fail(at, what, v);
+    if (power_of_two && (u & (u - 1)) != 0) fail(at, what, v);
+    return uint32_t(u);
+  }
+
+  std::string text(const json& v, const Ptr& at) const {
+    if (!v.is_string() || v.get_ref<const std::string&>().empty()) fail(at, "must be a non-empty string", v);
+    return v.get<std::string>();
+  }
+
+  // A path to an existing file; relative paths are taken from base_dir_.
+  std::string file(const json& v, const Ptr& at) const {
+    if (!v.is_string() || v.get_ref<const std::string&>().empty()) fail(at, "must be a non-empty file path", v);
+    fs::path p(v.get<std::string>());
+    if (p.is_relative() && !base_dir_.empty()) p = fs::path(base_dir_) / p;
+    p = p.lexically_normal();
+    std::error_code ec;
+    const fs::file_status st = fs::status(p, ec);
+    if (ec || !fs::exists(st) || fs::is_directory(st)) fail(at, "file not found: " + p.string(), v);
+    return p.string();
+  }
+
+  // [lo, hi] with lo <= hi, each within `b`.
+  std::pair<double, double> window(const json& v, const Ptr& at, const Bound& b) const {
+    if (!v.is_array() || v.size() != 2) fail(at, "must be an array [lo, hi] of two numbers", v);
+    const double lo = real(v[0], at / 0, b);
+    const double hi = real(v[1], at / 1, b);
+    if (lo > hi) fail(at, "lower bound must not exceed upper bound", v);
+    return {lo, hi};
+  }
+
+  HeightmapDesc heightmap(const json& v, const Ptr& at) const {
+    object(v, at, {"image", "fbm"});
+    const json* image = field(v, "image");
+    const json* fbm = field(v, "fbm");
+    if ((image != nullptr) == (fbm != nullptr)) fail(at, "needs exactly one of \"image\" or \"fbm\"", v);
+    HeightmapDesc h;
+    if (image) {
+      h.image_path = file(*image, at / "image");
+      return h;
+    }
+    const Ptr f_at = at / "fbm";
+    object(*fbm, f_at, {"size", "seed", "octaves", "frequency", "gain", "lacunarity"});
+    if (const json* f = field(*fbm, "size")) h.size = uint(*f, f_at / "size", 16, 8192);
+    if (const json* f = field(*fbm, "seed")) h.seed = uint(*f, f_at / "seed", 0, k_u32_max);
+    if (const json* f = field(*fbm, "octaves")) h.octaves = uint(*f, f_at / "octaves", 1, 16);
+    if (const json* f = field(*fbm, "frequency")) h.frequency = real(*f, f_at / "frequency", above(0));
+    if (const json* f = field(*fbm, "gain")) h.gain = real(*f, f_at / "gain", open(0, 1));
+    if (const json* f = field(*fbm, "lacunarity")) h.lacunarity = real(*f, f_at / "lacunarity", open_closed(1, 4));
+    return h;
+  }
+
+  TerrainDesc terrain(const json& v, const Ptr& at) const {
+    object(v, at, {"extent_m", "height_m", "heightmap"});
+    TerrainDesc t;
+    if (const json* f = field(v, "extent_m")) t.extent_m = real(*f, at / "extent_m", above(0));
+    if (const json* f = field(v, "height_m")) t.height_m = real(*f, at / "height_m", at_least(0));
+    if (const json* f = field(v, "heightmap")) t.heightmap = heightmap(*f, at / "heightmap");
+    return t;
+  }
+
+  VtConfig vt(const json& v, const Ptr& at) const {
+    object(v, at, {"log2_size", "page_texels", "border_texels"});
+    VtConfig c;  // ranges beyond "is a uint32" are checked by validate(VtConfig)
+    if (const json* f = field(v, "log2_size")) c.log2_size = uint(*f, at / "log2_size", 0, k_u32_max);
+    if (const json* f = field(v, "page_texels")) c.page_texels = uint(*f, at / "page_texels", 0, k_u32_max);
+    if (const json* f = field(v, "border_texels")) c.border_texels = uint(*f, at / "border_texels", 0, k_u32_max);
+    return c;
+  }
+
+  TextureDesc texture(const json& v, const Ptr& at) const {
+    object(v, at, {"generator", "resolution", "seed", "image", "height"});
+    const json* generator = field(v, "generator");
+    const json* image = field(v, "image");
+    if ((generator != nullptr) == (image != nullptr)) fail(at, "needs exactly one of \"generator\" or \"image\"", v);
+    TextureDesc t;
+    if (generator) {
+      if (const json* f = field(v, "height")) fail(at / "height", "only allowed with \"image\"", *f);
+      t.generator = text(*generator, at / "generator");
+      bool known = false;
+      for (std::string_view g : k_generators) known = known || g == t.generator;
+      if (!known) fail(at / "generator", "must be one of sand, grass, rock, mud, cobbles, bricks", *generator);
+      if (const json* f = field(v, "resolution")) t.resolution = uint(*f, at / "resolution", 16, 4096, true);
+      if (const json* f = field(v, "seed")) t.seed = uint(*f, at / "seed", 0, k_u32_max);
+      return t;
+    }
+    if (const json* f = field(v, "resolution")) fail(at / "resolution", "only allowed with \"generator\"", *f);
+    if (const json* f = field(v, "seed")) fail(at / "seed", "only allowed with \"generator\"", *f);
+    t.image_path = file(*image, at / "image");
+    if (const json* f = field(v, "height")) t.height_path = file(*f, at / "height");
+    return t;
+  }
+
+  WeightDesc weight(const json& v, const Ptr& at) const {
+    WeightDesc w;
+    if (v.is_string() && v.get_ref<const std::string&>() == "remainder") return w;
+    if (!v.is_object()) fail(at, "must be \"remainder\" or an object with \"rule\" or \"splat\"", v);
+    object(v, at, {"rule", "splat"});
+    const json* rule = field(v, "rule");
+    const json* splat = field(v, "splat");
+    if ((rule != nullptr) == (splat != nullptr)) fail(at, "needs exactly one of \"rule\" or \"splat\"", v);
+    if (rule) {
+      const Ptr r_at = at / "rule";
+      object(*rule, r_at, {"height", "height_fade", "slope_deg", "slope_fade_deg", "noise"});
+      w.kind = WeightDesc::Kind::Rule;
+      if (const json* f = field(*rule, "height"))
+        std::tie(w.height_lo, w.height_hi) = window(*f, r_at / "height", closed(0, 1));
+      if (const json* f = field(*rule, "height_fade")) w.height_fade = real(*f, r_at / "height_fade", at_least(0));
+      if (const json* f = field(*rule, "slope_deg"))
+        std::tie(w.slope_lo_deg, w.slope_hi_deg) = window(*f, r_at / "slope_deg", closed(0, 90));
+      if (const json* f = field(*rule, "slope_fade_deg"))
+        w.slope_fade_deg = real(*f, r_at / "slope_fade_deg", at_least(0));
+      if (const json* noise = field(*rule, "noise")) {
+        const Ptr n_at = r_at / "noise";
+        object(*noise, n_at, {"amplitude", "frequency"});
+        if (const json* f = field(*noise, "amplitude")) w.noise_amplitude = real(*f, n_at / "amplitude", closed(0, 4));
+        if (const json* f = field(*noise, "frequency")) w.noise_frequency = real(*f, n_at / "frequency", above(0));
+      }
+      return w;
+    }
+    const Ptr s_at = at / "splat";
+    object(*splat, s_at, {"image", "channel"});
+    w.kind = WeightDesc::Kind::Splat;
+    w.splat_path = file(require(*splat, s_at, "image"), s_at / "image");
+    if (const json* f = field(*splat, "channel")) {
+      const std::string c = f->is_string() ? f->get<std::string>() : std::string();
+      bool found = false;
+      for (size_t i = 0; i < k_channels.size(); ++i) {
+        if (c.size() == 1 && c[0] == k_channels[i]) {
+          w.splat_channel = uint32_t(i);
+          found = true;
+        }
+      }
+      if (!found) fail(s_at / "channel", "must be one of r, g, b, a", *f);
+    }
+    return w;
+  }
+
+  FbpbDesc fbpb(const json& v, const Ptr& at) const {
+    object(v, at, {"cm", "cf", "cn", "variation_threshold", "colour_coeff", "fade_lod", "meta", "mask"});
+    FbpbDesc b;
+    if (const json* f = field(v, "cm")) b.cm = real(*f, at / "cm", at_least(0, 1e6));
+    if (const json* f = field(v, "cf")) b.cf = real(*f, at / "cf", at_least(0, 1e6));
+    if (const json* f = field(v, "cn")) b.cn = real(*f, at / "cn", at_least(0, 1e6));
+    if (const json* f = field(v, "variation_threshold"))
+      b.variation_threshold = real(*f, at / "variation_threshold", closed(0, 1));
+    if (const json* f = field(v, "colour_coeff")) b.colour_coeff = real(*f, at / "colour_coeff", closed(0, 1));
+    if (const json* f = field(v, "fade_lod"))
+      std::tie(b.fade_lod_lo, b.fade_lod_hi) = window(*f, at / "fade_lod", any_finite());
+    const json* meta = field(v, "meta");
+    const json* mask = field(v, "mask");
+    if (meta && mask) fail(at / "mask", "\"meta\" and \"mask\" are mutually exclusive", *mask);
+    if (meta) b.meta_path = file(*meta, at / "meta");
+    if (mask) b.mask_path = file(*mask, at / "mask");
+    return b;
+  }
+
+  DptDesc dpt(const json& v, const Ptr& at) const {
+    object(v, at, {"layers", "fade_texels"});
+    DptDesc d;
+    if (const json* layers = field(v, "layers")) {
+      const Ptr l_at = at / "layers";
+      if (!layers->is_array() || layers->size() > k_max_dpt_layers)
+        fail(l_at, "must be an array of 0 to 4 layers", *layers);
+      for (size_t k = 0; k < layers->size(); ++k) {
+        const json& layer = (*layers)[k];
+        const Ptr k_at = l_at / k;
+        object(layer, k_at, {"patch_texels", "p", "r", "w", "h"});
+        DptLayerDesc L;
+        if (const json* f = field(layer, "patch_texels"))
+          L.patch_texels = real(*f, k_at / "patch_texels", above(0, 0x1p31));
+        if (const json* f = field(layer, "p")) L.p = real(*f, k_at / "p", above(0, 1e6));
+        if (const json* f = field(layer, "r")) L.r = real(*f, k_at / "r", above(0, 1e6));
+        if (const json* f = field(layer, "w")) L.w = real(*f, k_at / "w", above(0, 1e6));
+        if (const json* f = field(layer, "h")) L.h = real(*f, k_at / "h", at_least(0, 1e6));
+        d.layers.push_back(L);
+      }
+    }
+    if (const json* f = field(v, "fade_texels"))
+      std::tie(d.fade_lo_texels, d.fade_hi_texels) = window(*f, at / "fade_texels", at_least(0));
+    return d;
+  }
+
+  MaterialDesc material(const json& v, const Ptr& at, size_t index) const {
+    object(v, at, {"name", "albedo", "normal", "period_texels", "mode", "blend_sharpness", "weight", "fbpb", "dpt"});
+    MaterialDesc m;
+    m.name = text(require(v, at, "name"), at / "name");
+    m.albedo = texture(require(v, at, "albedo"), at / "albedo");
+    if (const json* f = field(v, "normal")) m.normal_path = file(*f, at / "normal");
+    if (const json* f = field(v, "period_texels"))
+      m.period_texels = real(*f, at / "period_texels", at_least(1, 0x1p30));
+    if (const json* f = field(v, "mode")) {
+      const auto mode = f->is_string() ? mode_from_string(f->get<std::string>()) : std::nullopt;
+      if (!mode) fail(at / "mode", "must be one of linear, blendmap, fbpb, dpt, fbpb+dpt", *f);
+      m.mode = *mode;
+    }
+    if (const json* f = field(v, "blend_sharpness"))
+      m.blend_sharpness = real(*f, at / "blend_sharpness", open_closed(0, 0.5));
+    if (const json* f = field(v, "weight")) {
+      m.weight = weight(*f, at / "weight");
+      if (index != 0 && m.weight.kind == WeightDesc::Kind::Remainder)
+        fail(at / "weight", "only the first material (/materials/0) may be \"remainder\"", *f);
+    } else if (index != 0) {
+      throw Failure{source_ + ": " + show_pointer(at / "weight") +
+                    ": required field is missing (only the first material defaults to \"remainder\")"};
+    }
+    if (const json* f = field(v, "fbpb")) {
+      m.fbpb = fbpb(*f, at / "fbpb");
+      m.has_fbpb = true;
+    }
+    if (m.mode == Mode::Fbpb || m.mode == Mode::FbpbDpt) m.has_fbpb = true;
+    const json* dpt_block = field(v, "dpt");
+    if (dpt_block) m.dpt = dpt(*dpt_block, at / "dpt");
+    if ((m.mode == Mode::Dpt || m.mode == Mode::FbpbDpt) && m.dpt.layers.empty()) {
+      const json* layers = dpt_block ? field(*dpt_block, "layers") : nullptr;
+      fail(at / "dpt" / "layers", "mode \"" + std::string(to_string(m.mode)) + "\" needs at least one DPT layer",
+           layers ? show_value(*layers) : std::string("nothing"));
+    }
+    return m;
+  }
+
+  std::string source_;
+  std::string base_dir_;
+};
+
+// Writes `path` relative to the scene's base_dir where that re-resolves to the same path,
+// so a serialised scene stays portable together with its assets.
+std::string portable_path(const std::string& path, const std::string& base_dir) {
+  if (base_dir.empty()) return path;
+  const fs::path p(path), base(base_dir);
+  if (p.is_absolute() != base.is_absolute()) return path;
+  const fs::path rel = p.lexically_relative(base);
+  if (rel.empty()) return path;
+  if (p.is_absolute() && *rel.begin() == "..") return path;  // outside: keep absolute
+  return rel.generic_string();
+}
+
+ojson pair(double lo, double hi) { return ojson::array({lo, hi}); }
+
+}  // namespace
+
+Result<SceneDesc> parse_scene(std::string_view json_text, const std::string& source_path, const std::string& base_dir) {
+  DomBuilder dom(json_text);
+  bool parsed = false;
+  try {
+    parsed = json::sax_parse(json_text, &dom);
+  } catch (const json::exception& e) {  // e.g. invalid UTF-8 handling; report, never crash
+    return make_error(source_path + ": invalid JSON: " + strip_nlohmann_prefix(e.what()));
+  }
+  if (!parsed) {
+    return make_error(source_path + ": " + (dom.error.empty() ? std::string("invalid JSON") : dom.error));
+  }
+  try {
+    return Parser(source_path, base_dir).scene(dom.root);
+  } catch (const Failure& f) {
+    return make_error(f.message);
+  }
+}
+
+Result<SceneDesc> load_scene_file(const std::string& path) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) return make_error(path + ": cannot read scene file: file not found");
+  if (fs::is_directory(path, ec)) return make_error(path + ": cannot read scene file: it is a directory");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return make_error(path + ": cannot read scene file: cannot open it");
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) return make_error(path + ": cannot read scene file: read error");
+  std::string base = fs::path(path).parent_path().string();
+  if (base.empty()) base = ".";
+  return parse_scene(text.str(), path, base);
+}
+
+std::string scene_to_json(const SceneDesc& s) {
+  const auto path = [&](const std::string& p) { return portable_path(p, s.base_dir); };
+  ojson root;
+  root["seed"] = s.seed;
+
+  ojson terrain;
+  terrain["extent_m"] = s.terrain.extent_m;
+  terrain["height_m"] = s.terrain.height_m;
+  const HeightmapDesc& h = s.terrain.heightmap;
+  if (!h.image_path.empty()) {
+    terrain["heightmap"] = {{"image", path(h.image_path)}};
+  } else {
+    ojson fbm;
+    fbm["size"] = h.size;
+    fbm["seed"] = h.seed;
+    fbm["octaves"] = h.octaves;
+    fbm["frequency"] = h.frequency;
+    fbm["gain"] = h.gain;
+    fbm["lacunarity"] = h.lacunarity;
+    terrain["heightmap"]["fbm"] = fbm;
+  }
+  root["terrain"] = terrain;
+
+  ojson vt;
+  vt["log2_size"] = s.vt.log2_size;
+  vt["page_texels"] = s.vt.page_texels;
+  vt["border_texels"] = s.vt.border_texels;
+  root["vt"] = vt;
+  root["linear_boost"] = s.linear_boost;
+
+  ojson materials = ojson::array();
+  for (const MaterialDesc& m : s.materials) {
+    ojson j;
+    j["name"] = m.name;
+    ojson albedo;
+    if (!m.albedo.image_path.empty()) {
+      albedo["image"] = path(m.albedo.image_path);
+      if (!m.albedo.height_path.empty()) albedo["height"] = path(m.albedo.height_path);
+    } else {
+      albedo["generator"] = m.albedo.generator;
+      albedo["resolution"] = m.albedo.resolution;
+      albedo["seed"] = m.albedo.seed;
+    }
+    j["albedo"] = albedo;
+    if (!m.normal_path.empty()) j["normal"] = path(m.normal_path);
+    j["period_texels"] = m.period_texels;
+    j["mode"] = std::string(to_string(m.mode));
+    j["blend_sharpness"] = m.blend_sharpness;
+
+    const WeightDesc& w = m.weight;
+    if (w.kind == WeightDesc::Kind::Remainder) {
+      j["weight"] = "remainder";
+    } else if (w.kind == WeightDesc::Kind::Rule) {
+      ojson rule;
+      rule["height"] = pair(w.height_lo, w.height_hi);
+      rule["height_fade"] = w.height_fade;
+      rule["slope_deg"] = pair(w.slope_lo_deg, w.slope_hi_deg);
+      rule["slope_fade_deg"] = w.slope_fade_deg;
+      ojson noise;
+      noise["amplitude"] = w.noise_amplitude;
+      noise["frequency"] = w.noise_frequency;
+      rule["noise"] = noise;
+      j["weight"]["rule"] = rule;
+    } else {
+      ojson splat;
+      splat["image"] = path(w.splat_path);
+      splat["channel"] = std::string(1, k_channels[w.splat_channel & 3u]);
+      j["weight"]["splat"] = splat;
+    }
+
+    if (m.has_fbpb) {
+      const FbpbDesc& b = m.fbpb;
+      ojson fb;
+      fb["cm"] = b.cm;
+      fb["cf"] = b.cf;
+      fb["cn"] = b.cn;
+      fb["variation_threshold"] = b.variation_threshold;
+      fb["colour_coeff"] = b.colour_coeff;
+      fb["fade_lod"] = pair(b.fade_lod_lo, b.fade_lod_hi);
+      if (!b.meta_path.empty()) fb["meta"] = path(b.meta_path);
+      if (!b.mask_path.empty()) fb["mask"] = path(b.mask_path);
+      j["fbpb"] = fb;
+    }
+
+    const DptDesc defaults;
+    if (!m.dpt.layers.empty() || m.dpt.fade_lo_texels != defaults.fade_lo_texels ||
+        m.dpt.fade_hi_texels != defaults.fade_hi_texels) {
+      ojson layers = ojson::array();
+      for (const DptLayerDesc& L : m.dpt.layers) {
+        ojson l;
+        l["patch_texels"] = L.patch_texels;
+        l["p"] = L.p;
+        l["r"] = L.r;
+        l["w"] = L.w;
+        l["h"] = L.h;
+        layers.push_back(l);
+      }
+      j["dpt"]["layers"] = layers;
+      j["dpt"]["fade_texels"] = pair(m.dpt.fade_lo_texels, m.dpt.fade_hi_texels);
+    }
+    materials.push_back(j);
+  }
+  root["materials"] = materials;
+  return root.dump(2) + "\n";
+}
+
+}  // namespace tvt
