@@ -101,15 +101,20 @@ FeatureLabels compact_labels(std::vector<int32_t> labels, uint32_t count, int r,
   return result;
 }
 
-// One 4-neighbour erosion step on the torus, repeated `steps` times (a diamond of radius steps).
+// 8-neighbourhood, for erosion and growing back: a (2e+1)^2 square structuring element, so
+// that eroding and growing a square feature by e texels gives back the same square.
+constexpr int k_ring_x[8] = {1, 1, 0, -1, -1, -1, 0, 1};
+constexpr int k_ring_y[8] = {0, 1, 1, 1, 0, -1, -1, -1};
+
+// Erosion on the torus by a (2·steps+1)^2 square: one 3x3 step, `steps` times.
 std::vector<uint8_t> erode(std::vector<uint8_t> mask, int r, uint32_t steps) {
   std::vector<uint8_t> next(mask.size());
   for (uint32_t step = 0; step < steps; ++step) {
     for (int y = 0; y < r; ++y)
       for (int x = 0; x < r; ++x) {
         bool keep = mask[texel_index(x, y, r)] != 0;
-        for (int s = 0; s < 4 && keep; ++s)
-          keep = mask[texel_index(wrap(x + k_step_x[s], r), wrap(y + k_step_y[s], r), r)] != 0;
+        for (int s = 0; s < 8 && keep; ++s)
+          keep = mask[texel_index(wrap(x + k_ring_x[s], r), wrap(y + k_ring_y[s], r), r)] != 0;
         next[texel_index(x, y, r)] = keep ? 1 : 0;
       }
     mask.swap(next);
@@ -117,9 +122,10 @@ std::vector<uint8_t> erode(std::vector<uint8_t> mask, int r, uint32_t steps) {
   return mask;
 }
 
-// Grows labels back into the un-eroded mask: every mask texel within `steps` 4-steps (walking
-// inside the mask) of a labelled texel takes the label of the nearest one (ties: first reached,
-// sources in row-major order). Mask texels farther away stay background.
+// Grows labels back into the un-eroded mask: every mask texel within `steps` 8-connected steps
+// (walking inside the mask) of a labelled texel takes the label of the nearest one (ties: first
+// reached, sources in row-major order). Mask texels farther away stay background, so parts
+// the erosion removed entirely (thin bridges, specks) are not brought back.
 void grow_into_mask(std::vector<int32_t>& labels, const std::vector<uint8_t>& mask, int r, uint32_t steps) {
   std::vector<size_t> frontier;
   for (size_t i = 0; i < labels.size(); ++i)
@@ -130,8 +136,8 @@ void grow_into_mask(std::vector<int32_t>& labels, const std::vector<uint8_t>& ma
     for (size_t i : frontier) {
       const int x = int(i % size_t(r));
       const int y = int(i / size_t(r));
-      for (int s = 0; s < 4; ++s) {
-        const size_t n = texel_index(wrap(x + k_step_x[s], r), wrap(y + k_step_y[s], r), r);
+      for (int s = 0; s < 8; ++s) {
+        const size_t n = texel_index(wrap(x + k_ring_x[s], r), wrap(y + k_ring_y[s], r), r);
         if (mask[n] && labels[n] == k_background) {
           labels[n] = labels[i];
           next.push_back(n);
