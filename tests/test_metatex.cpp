@@ -4,7 +4,9 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <functional>
+#include <iterator>
 #include <map>
 #include <random>
 #include <set>
@@ -461,6 +463,55 @@ TEST_F(MetatexFileTest, ReadRejectsCorruptFilesNamingFileAndProblem) {
   auto missing = tvt::read_meta_texture(path("absent.exr"));
   ASSERT_FALSE(missing.ok());
   EXPECT_NE(missing.error().message.find(path("absent.exr")), std::string::npos);
+}
+
+}  // namespace
+
+namespace {
+
+// STYLE #6: every truncated prefix and every flipped byte of a meta-texture file is either
+// rejected with the file's name or read back as a meta-texture that satisfies the format rules.
+TEST_F(MetatexFileTest, EveryTruncationAndFlippedByteIsRejectedOrValid) {
+  constexpr int r = 16;
+  tvt::ImageGray8 mask(r, r);
+  add_rect(mask, r - 2, r - 2, 5, 4);
+  add_rect(mask, 5, 6, 3, 3);
+  const auto meta = tvt::build_meta_texture(tvt::labels_from_mask(mask, 1), {}, 1.0);
+  ASSERT_TRUE(tvt::write_meta_texture(path("good.exr"), meta).ok());
+  std::vector<char> bytes;
+  {
+    std::ifstream in(path("good.exr"), std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  ASSERT_GT(bytes.size(), 100u);
+  const std::string bad = path("bad.exr");
+  auto check = [&](const std::vector<char>& data, const std::string& what) {
+    {
+      std::ofstream out(bad, std::ios::binary | std::ios::trunc);
+      out.write(data.data(), std::streamsize(data.size()));
+    }
+    auto result = tvt::read_meta_texture(bad);
+    if (!result.ok()) {
+      EXPECT_NE(result.error().message.find(bad), std::string::npos) << what << ": " << result.error().message;
+      return;
+    }
+    const int rr = result->resolution;
+    ASSERT_EQ(result->texels.size(), size_t(rr) * size_t(rr)) << what;
+    for (const auto& t : result->texels) {
+      ASSERT_LE(t.d, 1) << what;
+      ASSERT_LT(std::abs(int(t.dx)), rr) << what;
+      ASSERT_LT(std::abs(int(t.dy)), rr) << what;
+      if (!t.d) {
+        ASSERT_TRUE(t.dx == 0 && t.dy == 0) << what;
+      }
+    }
+  };
+  for (size_t n = 0; n < bytes.size(); ++n) check({bytes.begin(), bytes.begin() + std::ptrdiff_t(n)}, "prefix " + std::to_string(n));
+  for (size_t i = 0; i < bytes.size(); ++i) {
+    auto flipped = bytes;
+    flipped[i] = char(flipped[i] ^ 0x5a);
+    check(flipped, "flip at " + std::to_string(i));
+  }
 }
 
 }  // namespace
