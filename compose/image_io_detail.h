@@ -1,0 +1,33 @@
+// Internal to compose/: float images with channel names and string metadata, for files whose
+// channels are read by name (the FBPB meta-texture). Same checks as compose/image.h readers
+// (file named in every error, size limits, non-finite texels rejected) and the same atomic
+// write (temporary file in the target folder, then rename).
+#pragma once
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "compose/image.h"
+#include "vt/result.h"
+
+namespace tvt::detail {
+
+using StringMetadata = std::vector<std::pair<std::string, std::string>>;
+
+struct NamedFloatImage {
+  ImageF image;
+  std::vector<std::string> channel_names;  // one per channel, in the order the file reports them
+  StringMetadata metadata;                 // every string attribute of the file
+};
+
+// Largest accepted width or height of any image file, texels.
+inline constexpr int k_max_image_side = 32768;
+
+Result<NamedFloatImage> read_named_float_image(const std::string& path);
+
+// channel_names: empty (format defaults) or one per channel. The format comes from the
+// extension of `path`.
+Status write_named_float_image(const std::string& path, const ImageF& image,
+                               const std::vector<std::string>& channel_names, const StringMetadata& metadata);
+
+}  // namespace tvt::detail

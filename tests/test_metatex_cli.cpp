@@ -1,0 +1,170 @@
+// `terravt metatex` end to end: runs the built executable (TVT_TERRAVT_EXE) on synthetic inputs.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "compose/image.h"
+#include "compose/metatex.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr int R = 64;
+
+class MetatexCliTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir_ = fs::temp_directory_path() / ("tvt_metatex_cli_" + std::to_string(::getpid()) + "_" + info->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    // Albedo with three raised discs in the height (alpha); one crosses the corner.
+    tvt::ImageRGBA8 albedo(R, R);
+    tvt::ImageGray8 mask(R, R);
+    const int discs[3][3] = {{0, 0, 6}, {32, 20, 5}, {50, 45, 7}};
+    for (int y = 0; y < R; ++y)
+      for (int x = 0; x < R; ++x) {
+        bool f = false;
+        for (const auto& d : discs) {
+          int dx = ((x - d[0]) % R + R) % R, dy = ((y - d[1]) % R + R) % R;
+          if (dx > R / 2) dx -= R;
+          if (dy > R / 2) dy -= R;
+          f = f || dx * dx + dy * dy <= d[2] * d[2];
+        }
+        uint8_t* t = albedo.at(x, y);
+        t[0] = uint8_t(f ? 90 : 160);
+        t[1] = uint8_t(f ? 80 : 150);
+        t[2] = uint8_t(70 + (x + y) % 5);
+        t[3] = uint8_t(f ? 210 : 40 + (x * 3 + y) % 7);
+        mask.at(x, y) = f ? 255 : 0;
+      }
+    ASSERT_TRUE(tvt::write_image(path("albedo.png"), albedo).ok());
+    ASSERT_TRUE(tvt::write_image(path("mask.png"), mask).ok());
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+
+  // Runs `terravt <args>`, returns the exit code; stdout+stderr in output_.
+  int run(const std::string& args) {
+    const std::string log = path("log.txt");
+    const std::string command = std::string("\"") + TVT_TERRAVT_EXE + "\" " + args + " > \"" + log + "\" 2>&1";
+    const int status = std::system(command.c_str());
+    std::ifstream file(log);
+    std::stringstream text;
+    text << file.rdbuf();
+    output_ = text.str();
+    fs::remove(log);
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  }
+  fs::path dir_;
+  std::string output_;
+};
+
+TEST_F(MetatexCliTest, AutomaticIsolationWritesMetaAndDebug) {
+  const std::string args = "metatex --input " + path("albedo.png") + " --out " + path("meta.exr") + " --debug " +
+                           path("debug.png");
+  ASSERT_EQ(run(args), 0) << output_;
+  ASSERT_TRUE(fs::exists(path("meta.exr")));
+  ASSERT_TRUE(fs::exists(path("debug.png")));
+  EXPECT_NE(output_.find("features         3"), std::string::npos) << output_;
+  EXPECT_NE(output_.find("64 x 64"), std::string::npos);
+  auto meta = tvt::read_meta_texture(path("meta.exr"));
+  ASSERT_TRUE(meta.ok()) << meta.error().message;
+  EXPECT_EQ(meta->feature_count, 3u);
+  const tvt::MetaTexel& corner = meta->at(R - 1, R - 1);  // part of the corner disc
+  EXPECT_EQ(corner.d, 1);
+  EXPECT_EQ(corner.dx, 1);
+  EXPECT_EQ(corner.dy, 1);
+  auto debug = tvt::read_image_rgba8(path("debug.png"));
+  ASSERT_TRUE(debug.ok());
+  EXPECT_EQ(debug->width, R);
+}
+
+TEST_F(MetatexCliTest, HandMadeMaskAndSeparateHeight) {
+  ASSERT_EQ(run("metatex --input " + path("albedo.png") + " --mask " + path("mask.png") + " --min-texels 20 --blur 0 --out " +
+                path("m.exr")),
+            0)
+      << output_;
+  auto meta = tvt::read_meta_texture(path("m.exr"));
+  ASSERT_TRUE(meta.ok()) << meta.error().message;
+  EXPECT_EQ(meta->feature_count, 3u);
+  auto mask = tvt::read_image_rgba8(path("mask.png"));
+  for (int y = 0; y < R; ++y)
+    for (int x = 0; x < R; ++x) EXPECT_EQ(meta->at(x, y).f, mask->at(x, y)[0]);  // blur 0: f = 255·d
+
+  // --height: the mask's grey becomes the height, thresholded at 0.5.
+  ASSERT_EQ(run("metatex --input " + path("albedo.png") + " --height " + path("mask.png") +
+                " --threshold 0.5 --out " + path("h.exr")),
+            0)
+      << output_;
+  auto from_height = tvt::read_meta_texture(path("h.exr"));
+  ASSERT_TRUE(from_height.ok());
+  EXPECT_EQ(from_height->feature_count, 3u);
+}
+
+TEST_F(MetatexCliTest, BadFlagsAndInputsExitTwoAndWriteNothing) {
+  const std::string in = " --input " + path("albedo.png");
+  const std::string out = " --out " + path("out.exr");
+  struct Case {
+    std::string args;
+    std::string named;  // the flag or file the message must name
+  };
+  tvt::ImageRGBA8 oblong(64, 32), odd(48, 48);
+  ASSERT_TRUE(tvt::write_image(path("oblong.png"), oblong).ok());
+  ASSERT_TRUE(tvt::write_image(path("odd.png"), odd).ok());
+  {
+    std::ofstream junk(path("junk.png"), std::ios::binary);
+    junk << "definitely not a png";
+  }
+  const std::vector<Case> cases = {
+      {"metatex" + in + out + " --blur -1", "--blur"},
+      {"metatex" + in + out + " --threshold 1.5", "--threshold"},
+      {"metatex" + in + out + " --channel alpha", "--channel"},
+      {"metatex" + in + out + " --bogus", "--bogus"},
+      {"metatex" + in, "--out"},
+      {"metatex" + out, "--input"},
+      {"metatex --input " + path("nope.png") + out, path("nope.png")},
+      {"metatex --input " + path("junk.png") + out, path("junk.png")},
+      {"metatex --input " + path("oblong.png") + out, path("oblong.png")},
+      {"metatex --input " + path("odd.png") + out, "power-of-two"},
+      {"metatex" + in + out + " --mask " + path("oblong.png"), path("oblong.png")},
+      {"metatex" + in + out + " --mask " + path("mask.png") + " --invert", "--invert"},
+      {"metatex" + in + out + " --generator cobbles", "--generator"},
+      {"metatex --generator no-such-generator" + out, "no-such-generator"},
+      {"metatex" + in + " --out " + path("out.png"), "--out"},
+      {"metatex" + in + " --out " + path("missing/out.exr"), "does not exist"},
+      {"metatex" + in + out + " --debug " + path("missing/debug.png"), "--debug"},
+      {"metatex" + in + out + " --debug " + path("debug.notanimage"), "--debug"},
+  };
+  for (const Case& c : cases) {
+    EXPECT_EQ(run(c.args), 2) << c.args << "\n" << output_;
+    EXPECT_NE(output_.find(c.named), std::string::npos) << c.args << "\n" << output_;
+    EXPECT_FALSE(fs::exists(path("out.exr"))) << c.args;
+    EXPECT_FALSE(fs::exists(path("debug.png"))) << c.args;
+  }
+  for (const auto& entry : fs::directory_iterator(dir_))
+    EXPECT_EQ(entry.path().string().find(".tmp-"), std::string::npos) << entry.path();
+}
+
+TEST_F(MetatexCliTest, GeneratorWithExactLabels) {
+  ASSERT_EQ(run("metatex --generator cobbles --resolution 64 --seed 3 --out " + path("g.exr") + " --debug " +
+                path("g.png")),
+            0)
+      << output_;
+  auto meta = tvt::read_meta_texture(path("g.exr"));
+  ASSERT_TRUE(meta.ok()) << meta.error().message;
+  EXPECT_GT(meta->feature_count, 0u);
+  EXPECT_EQ(meta->resolution, 64);
+  EXPECT_TRUE(fs::exists(path("g.png")));
+}
+
+}  // namespace
