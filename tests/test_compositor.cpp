@@ -62,7 +62,8 @@ TEST(BlendMap, MatchesFormulaAndIsMonotone) {
       auto a = test::make_synthetic_assets({k_base, {{0, 255, 0, uint8_t(h * 255)}, p, Mode::BlendMap}});
       const PackedScene s = pack(a);
       const double g = at(s, 3, 3).g;
-      EXPECT_NEAR(g, blend_map(p, h, 0.1), 1e-6) << "p=" << p << " h=" << h;
+      const double hq = double(uint8_t(h * 255)) / 255.0;  // the material stores A in 8 bits
+      EXPECT_NEAR(g, blend_map(p, hq, 0.1), 1e-6) << "p=" << p << " h=" << h;
       EXPECT_GE(g, previous - 1e-12);
       previous = g;
     }
@@ -198,9 +199,9 @@ TEST_F(Dpt, CornersAndBilinearWeights) {
       const glm::dvec4 mid = compose_sample_reference(s, (i * 32 + 16) * 256, (j * 32 + 16) * 256, 1.0);
       const double avg = (mask(i, j) + mask(i + 1, j) + mask(i, j + 1) + mask(i + 1, j + 1)) / 4;
       EXPECT_NEAR(mid.g, blend_map(avg, 128 / 255.0, 0.1), 1e-6);
-      // Height: h = min(w * H, 1) mixed by b.
+      // Height: DPT's h = min(w * H, 1) with H = 1, mixed by b over the base's A (100).
       const double b = blend_map(avg, 128 / 255.0, 0.1);
-      EXPECT_NEAR(mid.a, (128 / 255.0) * (1 - b) + avg * b, 1e-6);
+      EXPECT_NEAR(mid.a, (100 / 255.0) * (1 - b) + avg * b, 1e-6);
     }
   EXPECT_GT(on, 120);
   EXPECT_LT(on, 280);
