@@ -49,12 +49,13 @@ float weight_at(int layer, int64_t x_fp, int64_t y_fp) {
   return clamp01(mix(mix(w00, w10, fx), mix(w01, w11, fx), fy));
 }
 
-vec4 material_texel(int n, int level, int64_t x, int64_t y) {
-  uint offset = P.materials[n].texel_offset;
-  const int res = P.materials[n].resolution;
-  for (int l = 0; l < level; ++l) offset += uint(res >> l) * uint(res >> l);
-  const int64_t rl = int64_t(res >> level);
-  return unpackUnorm4x8(material_texels[offset + uint(tvt_floor_mod(y, rl) * rl + tvt_floor_mod(x, rl))]);
+// Resolutions are powers of two, so wrapping is a mask (also right for negative indices) and
+// the mip chain offset has a closed form: sum_{j<l} (R>>j)^2 = (R^2 - (R>>l)^2) * 4/3.
+vec4 material_texel(int n, int level, int x, int y) {
+  const uint res = uint(P.materials[n].resolution);
+  const uint rl = res >> uint(level);
+  const uint offset = P.materials[n].texel_offset + (res * res - rl * rl) / 3u * 4u;
+  return unpackUnorm4x8(material_texels[offset + (uint(y) & (rl - 1u)) * rl + (uint(x) & (rl - 1u))]);
 }
 
 vec4 material_bilinear(int n, int level, float u, float v) {
@@ -62,7 +63,7 @@ vec4 material_bilinear(int n, int level, float u, float v) {
   const float ul = u * scale - 0.5, vl = v * scale - 0.5;
   const float fi = floor(ul), fj = floor(vl);
   const float fx = ul - fi, fy = vl - fj;
-  const int64_t i = int64_t(fi), j = int64_t(fj);
+  const int i = int(fi), j = int(fj);
   return mix(mix(material_texel(n, level, i, j), material_texel(n, level, i + 1, j), fx),
              mix(material_texel(n, level, i, j + 1), material_texel(n, level, i + 1, j + 1), fx), fy);
 }
@@ -73,7 +74,7 @@ void material_coord(int n, int64_t pos_fp, out float local_, out int64_t global_
   const int64_t num = pos_fp * int64_t(P.materials[n].resolution);
   global_ = tvt_floor_div(num, period);
   const int64_t rem = num - global_ * period;
-  local_ = float(tvt_floor_mod(global_, int64_t(P.materials[n].resolution))) + float(rem) / float(period);
+  local_ = float(global_ & int64_t(P.materials[n].resolution - 1)) + float(rem) / float(period);
 }
 
 float material_lod(int n, float footprint) {
@@ -167,7 +168,7 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint) {
         float u, v;
         material_coord(n, x_fp, u, gx);
         material_coord(n, y_fp, v, gy);
-        const int64_t lx = tvt_floor_mod(gx, R), ly = tvt_floor_mod(gy, R);
+        const int64_t lx = gx & (R - 1), ly = gy & (R - 1);
         const uint mi = P.materials[n].meta_offset + uint(ly * R + lx);
         const uint w0 = meta_texels[2u * mi], w1 = meta_texels[2u * mi + 1u];
         const int64_t dx = int64_t(bitfieldExtract(int(w0), 0, 16));
@@ -176,15 +177,16 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint) {
         const float f = float((w1 >> 8u) & 0xffu) / 255.0;
         const int64_t cx = gx + dx, cy = gy + dy;
         const int64_t period = P.materials[n].period_fp;
-        const int64_t cx_fp = tvt_floor_div((2 * cx + 1) * period, 2 * R);
-        const int64_t cy_fp = tvt_floor_div((2 * cy + 1) * period, 2 * R);
+        const int shift = P.materials[n].log2_resolution + 1;  // / 2R, a power of two
+        const int64_t cx_fp = ((2 * cx + 1) * period) >> shift;
+        const int64_t cy_fp = ((2 * cy + 1) * period) >> shift;
         const float pw = d > 0.0 ? weight_at(P.materials[n].weight_layer, cx_fp, cy_fp) : plain;
         const float r = tvt_rand01(tvt_hash_coord(cx, cy, P.materials[n].fbpb_salt));
         visible = d > 0.0 && pw > 0.0 && r <= pw * P.materials[n].cf;
         if (visible && pw < 1.0) {
           const uint hv = tvt_hash_coord(cx, cy, P.materials[n].variation_salt);
-          const int64_t vx = tvt_floor_mod(lx + int64_t(hv & 0xffffu), R);
-          const int64_t vy = tvt_floor_mod(ly + int64_t(hv >> 16u), R);
+          const int64_t vx = (lx + int64_t(hv & 0xffffu)) & (R - 1);
+          const int64_t vy = (ly + int64_t(hv >> 16u)) & (R - 1);
           const uint vw = meta_texels[2u * (P.materials[n].meta_offset + uint(vy * R + vx)) + 1u];
           const float variation = float((vw >> 16u) & 0xffu) / 255.0;
           if (variation < P.materials[n].variation_threshold) {

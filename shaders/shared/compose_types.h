@@ -18,7 +18,7 @@ TVT_CONST int TVT_MODE_FBPB = 2;      // Feature-Based Probabilistic Blending
 TVT_CONST int TVT_MODE_DPT = 3;       // Dynamic Patch Transitions
 TVT_CONST int TVT_MODE_FBPB_DPT = 4;  // FBPB features over a DPT-shaped non-feature blend
 
-TVT_CONST int TVT_COMPOSE_GROUP = 8;  // compute workgroup edge (texels)
+TVT_CONST int TVT_COMPOSE_GROUP = 16;  // compute workgroup edge (texels); lavapipe pays ~16 us per group
 
 struct TvtDptLayer {      // 32 bytes
   int64_t patch_fp;       // patch edge S_k, level-0 texels * 256
