@@ -51,7 +51,7 @@ struct WeightDesc {
   // Rule: smoothstep windows on height and slope, multiplied, plus optional fBm noise.
   double height_lo = 0.0, height_hi = 1.0, height_fade = 0.05;
   double slope_lo_deg = 0.0, slope_hi_deg = 90.0, slope_fade_deg = 5.0;
-  double noise_amplitude = 0.0;  // adds amplitude * (fbm - 0.5) before clamping
+  double noise_amplitude = 0.0;  // adds amplitude * (fbm - 0.5) * 4p(1-p): perturbs the transition band only
   double noise_frequency = 16.0; // cycles across the terrain
   // Splat: one channel of an RGBA image covering the whole terrain.
   std::string splat_path;

@@ -140,8 +140,10 @@ Status fill_weight_layer(const SceneDesc& d, size_t index, const ImageF& hf, Wei
                    window_weight(slope_deg(hf, x, y, tx, ty, d.terrain.height_m), w.slope_lo_deg, w.slope_hi_deg,
                                  w.slope_fade_deg);
         if (!noise.empty()) {
+          // Noise breaks up the transition band only: 4v(1-v) is 0 where the rule says 0 or
+          // 1, so zero-weight regions stay exactly zero (and are culled per page).
           const size_t nx = size_t(x) * ns / size_t(grid.width), ny = size_t(y) * ns / size_t(grid.height);
-          v += w.noise_amplitude * (double(noise[ny * ns + nx]) - 0.5);
+          v += w.noise_amplitude * (double(noise[ny * ns + nx]) - 0.5) * 4.0 * v * (1.0 - v);
         }
         out[size_t(y) * size_t(grid.width) + size_t(x)] = float(clamp01(v));
       }

@@ -36,6 +36,7 @@ Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, c
   c->slots_ = slots;
   c->slot_texels_ = uint32_t(scene.params.page_texels + 2 * scene.params.border_texels);
   c->params_ = scene.params;
+  c->culler_ = std::make_unique<MaterialCuller>(scene);
 
   c->params_buffer_ = context.create_buffer(sizeof(gpu::TvtComposeParams), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
   std::memcpy(c->params_buffer_.mapped(), &c->params_, sizeof(c->params_));
@@ -70,6 +71,7 @@ Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, c
 
 void GpuComposer::set_params(const gpu::TvtComposeParams& params) {
   params_ = params;
+  culler_->set_params(params);
   std::memcpy(params_buffer_.mapped(), &params_, sizeof(params_));
 }
 
@@ -79,7 +81,8 @@ void GpuComposer::record(VkCommandBuffer cmd, std::span<const PageJob> jobs) {
   auto* dst = static_cast<gpu::TvtPageJob*>(job_buffer_.mapped());
   for (size_t i = 0; i < jobs.size(); ++i) {
     TVT_CHECK(jobs[i].slot < slots_);
-    dst[i] = gpu::TvtPageJob{jobs[i].page.mip, jobs[i].page.x, jobs[i].page.y, jobs[i].slot};
+    const uint32_t mask = culling_ ? culler_->mask(jobs[i].page) : 0xffffffffu;
+    dst[i] = gpu::TvtPageJob{jobs[i].page.mip, jobs[i].page.x, jobs[i].page.y, jobs[i].slot, mask, 0u, 0u, 0u};
   }
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.handle());
   const VkDescriptorSet set = descriptors_.handle();

@@ -7,6 +7,7 @@
 #include <span>
 #include <vector>
 
+#include "compose/material_culling.h"
 #include "compose/packed_scene.h"
 #include "render/vk_context.h"
 #include "vt/vt_config.h"
@@ -29,6 +30,9 @@ class GpuComposer {
   void set_params(const gpu::TvtComposeParams& params);
   const gpu::TvtComposeParams& params() const { return params_; }
 
+  // Per-page material culling (on by default; exact, see material_culling.h).
+  void set_culling(bool enabled) { culling_ = enabled; }
+
   // Records the composition of `jobs` into the output image, which must be in layout GENERAL
   // (create() leaves it so). Jobs are copied into a host-visible ring; at most slots() jobs.
   void record(VkCommandBuffer cmd, std::span<const PageJob> jobs);
@@ -48,6 +52,8 @@ class GpuComposer {
   GpuComposer() = default;
   vk::Context* context_ = nullptr;
   gpu::TvtComposeParams params_{};
+  std::unique_ptr<MaterialCuller> culler_;
+  bool culling_ = true;
   uint32_t slots_ = 0;
   uint32_t slot_texels_ = 0;
   vk::Buffer params_buffer_, material_buffer_, meta_buffer_, weight_buffer_, job_buffer_, readback_buffer_;

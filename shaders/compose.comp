@@ -28,21 +28,20 @@ float ramp(float v, float lo, float hi) {
   return clamp((v - lo) / (hi - lo), 0.0, 1.0);
 }
 
+// Bilinear weight at a terrain position, clamped at the terrain edge. The position becomes a
+// float only after clamping, as a fraction of the terrain: its rounding (2^-24 of the terrain,
+// at most 2^-11 of a weight texel for grids up to 8192) is far below what the smooth weight
+// fields resolve, and it keeps the hot path in 32-bit arithmetic.
 float weight_at(int layer, int64_t x_fp, int64_t y_fp) {
   const int shift = P.log2_vt + TVT_FIXED_BITS;
   const int64_t vt_fp = int64_t(1) << shift;
-  const int64_t half_ = int64_t(1) << (shift - 1);
-  x_fp = clamp(x_fp, int64_t(0), vt_fp);
-  y_fp = clamp(y_fp, int64_t(0), vt_fp);
-  const int64_t nx = x_fp * int64_t(P.weight_width) - half_;
-  const int64_t ny = y_fp * int64_t(P.weight_height) - half_;
-  const int64_t ix = nx >> shift, iy = ny >> shift;
-  const float fx = float(nx - (ix << shift)) * exp2(-float(shift));
-  const float fy = float(ny - (iy << shift)) * exp2(-float(shift));
-  const int x0 = int(clamp(ix, int64_t(0), int64_t(P.weight_width - 1)));
-  const int x1 = int(clamp(ix + 1, int64_t(0), int64_t(P.weight_width - 1)));
-  const int y0 = int(clamp(iy, int64_t(0), int64_t(P.weight_height - 1)));
-  const int y1 = int(clamp(iy + 1, int64_t(0), int64_t(P.weight_height - 1)));
+  const float inv = exp2(-float(shift));
+  const float u = float(clamp(x_fp, int64_t(0), vt_fp)) * inv * float(P.weight_width) - 0.5;
+  const float v = float(clamp(y_fp, int64_t(0), vt_fp)) * inv * float(P.weight_height) - 0.5;
+  const float fu = floor(u), fv = floor(v);
+  const float fx = u - fu, fy = v - fv;
+  const int x0 = clamp(int(fu), 0, P.weight_width - 1), x1 = clamp(int(fu) + 1, 0, P.weight_width - 1);
+  const int y0 = clamp(int(fv), 0, P.weight_height - 1), y1 = clamp(int(fv) + 1, 0, P.weight_height - 1);
   const int base = layer * P.weight_height;
   const float w00 = weights[(base + y0) * P.weight_width + x0], w10 = weights[(base + y0) * P.weight_width + x1];
   const float w01 = weights[(base + y1) * P.weight_width + x0], w11 = weights[(base + y1) * P.weight_width + x1];
@@ -108,13 +107,18 @@ void dpt(int n, int64_t x_fp, int64_t y_fp, float footprint, float plain, float 
     const int64_t ix = tvt_floor_div(x_fp, ps), iy = tvt_floor_div(y_fp, ps);
     const float fx = float(x_fp - ix * ps) / float(ps);
     const float fy = float(y_fp - iy * ps) / float(ps);
+    // m_j = p_j > 0 && r_j^R <= p_j^P (eq 4.1, 4.2), compared in the log domain: two log2
+    // instead of two pow; r is never 0, and p = 0 fails the first test.
+    const int layer_w = P.materials[n].weight_layer;
+    const float ep = P.materials[n].dpt[k].exp_p, er = P.materials[n].dpt[k].exp_r;
+    const uint salt = P.materials[n].dpt[k].salt;
+    const int64_t half_patch = ps / 2;
     float m[4];
     for (int c = 0; c < 4; ++c) {
       const int64_t jx = ix + int64_t(c & 1), jy = iy + int64_t(c >> 1);
-      const float pj = safe_pow(weight_at(P.materials[n].weight_layer, jx * ps + ps / 2, jy * ps + ps / 2),
-                                P.materials[n].dpt[k].exp_p);
-      const float rj = safe_pow(tvt_rand01(tvt_hash_coord(jx, jy, P.materials[n].dpt[k].salt)), P.materials[n].dpt[k].exp_r);
-      m[c] = (pj > 0.0 && rj <= pj) ? 1.0 : 0.0;
+      const float w = weight_at(layer_w, jx * ps + half_patch, jy * ps + half_patch);
+      const float r = tvt_rand01(tvt_hash_coord(jx, jy, salt));
+      m[c] = (w > 0.0 && er * log2(r) <= ep * log2(w)) ? 1.0 : 0.0;
     }
     const float bl = mix(mix(m[0], m[1], fx), mix(m[2], m[3], fx), fy);
     const float w = safe_pow(bl, P.materials[n].dpt[k].exp_w);
@@ -128,16 +132,19 @@ void dpt(int n, int64_t x_fp, int64_t y_fp, float footprint, float plain, float 
   h_out = h;
 }
 
-vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint) {
+vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_mask) {
   footprint = (isnan(footprint) || isinf(footprint)) ? 1.0 : max(footprint, 1.0 / 256.0);
   float wts[TVT_MAX_MATERIALS];
-  for (int n = 0; n < P.material_count; ++n) wts[n] = weight_at(P.materials[n].weight_layer, x_fp, y_fp);
+  for (int n = 0; n < P.material_count; ++n)
+    wts[n] = (material_mask & (1u << uint(n))) != 0u ? weight_at(P.materials[n].weight_layer, x_fp, y_fp) : 0.0;
 
   vec4 result = sample_material(0, x_fp, y_fp, material_lod(0, footprint));
   float weight_sum = wts[0];
   bool feature_above = false;
 
   for (int n = 1; n < P.material_count; ++n) {
+    // Culled on the host: zero weight everywhere within reach, so b = 0 (material_culling.h).
+    if ((material_mask & (1u << uint(n))) == 0u) continue;
     const float plain = wts[n];
     weight_sum += plain;
     const int mode = P.materials[n].mode;
@@ -227,7 +234,7 @@ void main() {
     for (int64_t sx = 0; sx < s; ++sx) {
       const int64_t xf = (x << sub_shift) + (((2 * sx + 1) << sub_shift) / (2 * s));
       const int64_t yf = (y << sub_shift) + (((2 * sy + 1) << sub_shift) / (2 * s));
-      sum += compose_sample(xf, yf, footprint);
+      sum += compose_sample(xf, yf, footprint, job.material_mask);
     }
   imageStore(page_out, ivec3(t, int(job.slot)), sum / float(s * s));
 }

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <bit>
 #include <map>
 
 #include "compose/packed_scene.h"
@@ -113,4 +114,25 @@ TEST_F(GpuCompose, PagesAreDeterministicAndBordersMatchNeighbours) {
         EXPECT_EQ(first[0][size_t((y * S + B + P + b) * 4 + c)], first[1][size_t((y * S + B + b) * 4 + c)]);
         EXPECT_EQ(first[0][size_t(((B + P + b) * S + y) * 4 + c)], first[2][size_t(((B + b) * S + y) * 4 + c)]);
       }
+}
+
+TEST_F(GpuCompose, MaterialCullingIsExact) {
+  const SceneAssets& assets = default_assets(16);
+  for (Method m : {Method::FbpbDpt, Method::Linear}) {
+    auto packed = pack_scene(assets, options_for(m));
+    ASSERT_TRUE(packed.ok());
+    auto composer = GpuComposer::create(ctx(), packed.value(), 8);
+    ASSERT_TRUE(composer.ok());
+    // A spread of pages, several of which cull materials (checked below).
+    std::vector<PageId> pages;
+    for (uint32_t i = 0; i < 8; ++i) pages.push_back(PageId{i % 3, (i * 37) % 64, (i * 53 + 11) % 64});
+    const MaterialCuller culler(packed.value());
+    int culled = 0;
+    for (const PageId& p : pages) culled += std::popcount(~culler.mask(p) & ((1u << packed->params.material_count) - 1u));
+    EXPECT_GT(culled, 0);
+    const auto with = composer.value()->compose_pages(pages);
+    composer.value()->set_culling(false);
+    const auto without = composer.value()->compose_pages(pages);
+    EXPECT_EQ(with, without) << to_string(m);
+  }
 }

@@ -75,6 +75,8 @@ struct TvtPageJob {       // one page to compose into one cache slot
   uint page_x;
   uint page_y;
   uint slot;              // layer of the output array image
+  uint material_mask;     // bit n: material n may have weight within reach of the page
+  uint pad0, pad1, pad2;
 };
 
 TVT_END
@@ -85,6 +87,6 @@ static_assert(sizeof(tvt::gpu::TvtMaterial) == 224);
 static_assert(offsetof(tvt::gpu::TvtMaterial, dpt) == 96);
 static_assert(sizeof(tvt::gpu::TvtComposeParams) == 48 + 16 * 224);
 static_assert(offsetof(tvt::gpu::TvtComposeParams, materials) == 48);
-static_assert(sizeof(tvt::gpu::TvtPageJob) == 16);
+static_assert(sizeof(tvt::gpu::TvtPageJob) == 32);
 #endif
 #endif

@@ -1,0 +1,73 @@
+#include "compose/material_culling.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace tvt {
+
+MaterialCuller::MaterialCuller(const PackedScene& s) {
+  const gpu::TvtComposeParams& p = s.params;
+  width_ = p.weight_width;
+  height_ = p.weight_height;
+  layers_ = p.weight_layers;
+  log2_vt_ = p.log2_vt;
+  page_ = p.page_texels;
+  border_ = p.border_texels;
+  const size_t w1 = size_t(width_) + 1, h1 = size_t(height_) + 1;
+  nonzero_sat_.assign(size_t(layers_) * w1 * h1, 0u);
+  for (int l = 0; l < layers_; ++l) {
+    uint32_t* sat = &nonzero_sat_[size_t(l) * w1 * h1];
+    const float* w = &s.weights[size_t(l) * size_t(width_) * size_t(height_)];
+    for (int y = 0; y < height_; ++y)
+      for (int x = 0; x < width_; ++x) {
+        const float v = w[size_t(y) * size_t(width_) + size_t(x)];
+        // NaN reads as 0 in the compositors, so only a finite positive weight counts.
+        const uint32_t nz = (std::isfinite(v) && v > 0.f) ? 1u : 0u;
+        sat[size_t(y + 1) * w1 + size_t(x + 1)] =
+            nz + sat[size_t(y) * w1 + size_t(x + 1)] + sat[size_t(y + 1) * w1 + size_t(x)] - sat[size_t(y) * w1 + size_t(x)];
+      }
+  }
+  set_params(p);
+}
+
+void MaterialCuller::set_params(const gpu::TvtComposeParams& p) {
+  reach_texels_.clear();
+  layer_of_.clear();
+  for (int n = 0; n < p.material_count; ++n) {
+    const gpu::TvtMaterial& m = p.materials[n];
+    int64_t reach = 0;
+    for (int k = 0; k < m.dpt_layer_count; ++k) reach = std::max(reach, 2 * ((m.dpt[k].patch_fp >> 8) + 1));
+    if (m.meta_offset != gpu::TVT_NO_META) reach += (m.period_fp >> 9) + 2;
+    reach_texels_.push_back(reach);
+    layer_of_.push_back(m.weight_layer);
+  }
+}
+
+uint32_t MaterialCuller::mask_rect(int64_t x0, int64_t y0, int64_t x1, int64_t y1) const {
+  const size_t w1 = size_t(width_) + 1, h1 = size_t(height_) + 1;
+  uint32_t mask = 1u;
+  for (size_t n = 1; n < reach_texels_.size(); ++n) {
+    const int64_t r = reach_texels_[n];
+    // Weight texel i covers level-0 [i, i+1) * V / W; bilinear reads one more on each side.
+    auto cell = [&](int64_t texel, int size) { return (texel * size) >> log2_vt_; };
+    const int64_t i0 = std::clamp<int64_t>(cell(x0 - r, width_) - 1, 0, width_ - 1);
+    const int64_t i1 = std::clamp<int64_t>(cell(x1 + r, width_) + 1, 0, width_ - 1);
+    const int64_t j0 = std::clamp<int64_t>(cell(y0 - r, height_) - 1, 0, height_ - 1);
+    const int64_t j1 = std::clamp<int64_t>(cell(y1 + r, height_) + 1, 0, height_ - 1);
+    const uint32_t* sat = &nonzero_sat_[size_t(layer_of_[n]) * w1 * h1];
+    const uint32_t count = sat[size_t(j1 + 1) * w1 + size_t(i1 + 1)] - sat[size_t(j0) * w1 + size_t(i1 + 1)] -
+                           sat[size_t(j1 + 1) * w1 + size_t(i0)] + sat[size_t(j0) * w1 + size_t(i0)];
+    if (count > 0) mask |= 1u << n;
+  }
+  return mask;
+}
+
+uint32_t MaterialCuller::mask(const PageId& page) const {
+  const int64_t P = page_, B = border_;
+  const int m = int(page.mip);
+  const int64_t x0 = (int64_t(page.x) * P - B) << m, y0 = (int64_t(page.y) * P - B) << m;
+  const int64_t x1 = (int64_t(page.x + 1) * P + B) << m, y1 = (int64_t(page.y + 1) * P + B) << m;
+  return mask_rect(x0, y0, x1, y1);
+}
+
+}  // namespace tvt

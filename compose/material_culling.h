@@ -1,0 +1,35 @@
+// Which materials a page can possibly show ("model only what the scene requires"): a material
+// whose weight is zero on every weight-grid texel within reach of the page contributes b = 0
+// to every texel of it, whatever its mode, so composition may skip it. Exact, not a heuristic:
+// culled pages are byte-identical to unculled ones (tests/gpu_compose.cpp).
+//
+// Reach of material n around the page footprint: one weight texel (bilinear), plus for DPT
+// twice the largest patch (corner centres lie up to 1.5 patches away), plus for FBPB half a
+// tiling period (a feature's centroid is at most half a tile from its texels).
+#pragma once
+#include <cstdint>
+#include <vector>
+
+#include "compose/packed_scene.h"
+#include "vt/vt_config.h"
+
+namespace tvt {
+
+class MaterialCuller {
+ public:
+  explicit MaterialCuller(const PackedScene& scene);
+  // Recomputes the per-material reach for new parameters (same weights).
+  void set_params(const gpu::TvtComposeParams& params);
+  // Bit n set: material n may contribute to `page`. The base (bit 0) is always set.
+  uint32_t mask(const PageId& page) const;
+  // The same for an arbitrary level-0 texel rectangle [x0, x1) x [y0, y1).
+  uint32_t mask_rect(int64_t x0, int64_t y0, int64_t x1, int64_t y1) const;
+
+ private:
+  int width_ = 0, height_ = 0, layers_ = 0, log2_vt_ = 0, page_ = 0, border_ = 0;
+  std::vector<int64_t> reach_texels_;  // per material
+  std::vector<int> layer_of_;          // weight layer per material
+  std::vector<uint32_t> nonzero_sat_;  // per layer summed-area table of (weight > 0), (W+1)*(H+1)
+};
+
+}  // namespace tvt

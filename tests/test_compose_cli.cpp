@@ -1,0 +1,53 @@
+// `terravt compose` end to end on the CPU reference (the GPU path is covered by gpu_*).
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+
+#include "compose/image.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+int run(const std::string& args) {
+  const std::string cmd = std::string(TVT_TERRAVT_EXE) + " " + args + " >/dev/null 2>&1";
+  const int status = std::system(cmd.c_str());
+  return WEXITSTATUS(status);
+}
+fs::path temp_dir(const std::string& name) {
+  const fs::path d = fs::temp_directory_path() / ("terravt-compose-" + name + "-" + std::to_string(::getpid()));
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+}  // namespace
+
+TEST(ComposeCli, WritesSixLabelledPanelsOnTheCpu) {
+  const fs::path d = temp_dir("ok");
+  const fs::path out = d / "sheet.png";
+  ASSERT_EQ(run("compose --device cpu --size 32 --mip 3 --out " + out.string() + " --panels " + d.string()), 0);
+  auto img = tvt::read_image_rgba8(out.string());
+  ASSERT_TRUE(img.ok()) << img.error().message;
+  EXPECT_EQ(img->width, 3 * 32 + 4 * 4);
+  EXPECT_EQ(img->height, 2 * 32 + 3 * 4);
+  for (const char* m : {"linear", "blendmap", "fbpb", "dpt1", "dpt2", "fbpb+dpt2"})
+    EXPECT_TRUE(fs::exists(d / (std::string("compose-") + m + ".png"))) << m;
+  // The methods differ: blend map and FBPB+DPT2 panels are not identical.
+  auto a = tvt::read_image_rgba8((d / "compose-blendmap.png").string());
+  auto b = tvt::read_image_rgba8((d / "compose-fbpb+dpt2.png").string());
+  ASSERT_TRUE(a.ok() && b.ok());
+  EXPECT_NE(a->texels, b->texels);
+  fs::remove_all(d);
+}
+
+TEST(ComposeCli, BadFlagsExitWithUsageErrorAndWriteNothing) {
+  const fs::path d = temp_dir("bad");
+  const std::string out = " --out " + (d / "x.png").string();
+  EXPECT_EQ(run("compose --device tpu" + out), 2);
+  for (const std::string args : {"compose --methods linear,nope", "compose --mip 99",
+                                  "compose --region 1,2,3", "compose --region -5,0,16,16", "compose --supersample 3",
+                                  "compose --size 2", "compose --scene /does/not/exist.json", "compose --panels /no/such/dir"})
+    EXPECT_EQ(run(args + " --device cpu" + out), 2) << args;
+  EXPECT_TRUE(fs::is_empty(d));
+  fs::remove_all(d);
+}
