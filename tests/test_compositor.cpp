@@ -301,3 +301,26 @@ TEST(Pages, DeterministicAndBordersMatchNeighbours) {
         EXPECT_EQ(first[size_t((y * S + B + P + bx) * 4 + c)], right[size_t((y * S + B + bx) * 4 + c)]);
     }
 }
+
+TEST(Hash, RandomNumbersCoverTheirBoundsExactly) {
+  EXPECT_EQ(gpu::tvt_rand01(0u), std::ldexp(1.f, -24));  // smallest r: never 0, so r <= p*Cf is safe
+  EXPECT_EQ(gpu::tvt_rand01(0xffffffffu), 1.f);          // largest r: exactly 1, shown only at p*Cf >= 1
+  EXPECT_EQ(gpu::tvt_rand01(0xffu), std::ldexp(1.f, -24));  // the low 8 bits never matter
+  // Decorrelated coordinates: swapping x and y, or a neighbouring salt, changes the hash.
+  EXPECT_NE(gpu::tvt_hash_coord(3, 5, 1), gpu::tvt_hash_coord(5, 3, 1));
+  EXPECT_NE(gpu::tvt_hash_coord(3, 5, 1), gpu::tvt_hash_coord(3, 5, 2));
+  EXPECT_NE(gpu::tvt_hash_coord(int64_t(1) << 32, 0, 1), gpu::tvt_hash_coord(0, 0, 1));
+  // Roughly uniform: mean of r over 2^16 coordinates.
+  double sum = 0;
+  for (int64_t i = 0; i < 65536; ++i) sum += gpu::tvt_rand01(gpu::tvt_hash_coord(i & 255, i >> 8, 9));
+  EXPECT_NEAR(sum / 65536, 0.5, 0.01);
+}
+
+TEST(Extremes, AllFeatureMaskAndFullVisibility) {
+  // Every texel is one feature covering the whole tile; at p = 1, r <= p*Cf always holds.
+  auto a = test::make_synthetic_assets({k_base, {{0, 250, 0, 200}, 1.f, Mode::Fbpb}});
+  a.materials[1].meta = test::square_feature_meta(16, 8, 8, 16);
+  a.desc.materials[1].has_fbpb = true;
+  const PackedScene s = pack(a);
+  for (int64_t x : {0, 17, 63, 64, 1000}) EXPECT_NEAR(at(s, x, x * 3 % 1024).g, 250 / 255.0, 1e-9);
+}
