@@ -149,8 +149,94 @@ int run_bench_compose(const BenchComposeArgs& a) {
   return 0;
 }
 
+struct BenchMipsArgs {
+  std::string scene;
+  std::string gpu_name;
+  std::string method = "fbpb+dpt2";
+  std::vector<uint32_t> mips = {1, 2, 3};
+  uint32_t pages = 2;
+  int repeats = 2;
+};
+
+// PSNR in dB of the RGB channels of two equally sized RGBA8 buffers (99 dB when identical).
+double psnr_rgb(const std::vector<uint8_t>& a, const std::vector<uint8_t>& b) {
+  double se = 0;
+  size_t n = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (i % 4 == 3) continue;
+    const double d = double(a[i]) - double(b[i]);
+    se += d * d;
+    ++n;
+  }
+  if (se == 0) return 99.0;
+  return 10.0 * std::log10(255.0 * 255.0 / (se / double(n)));
+}
+
+// Mip strategies of DESIGN §4.3 against the ground truth (the box filter of the level-0
+// composition = 2^m x 2^m supersampling at mip m): error and cost side by side.
+int run_bench_mips(const BenchMipsArgs& a) {
+  const char* cmd = "bench mips";
+  const auto method = method_from_string(a.method);
+  if (!method) return fail(cmd, "--method: unknown method '" + a.method + "'", 2);
+  if (a.pages < 1 || a.pages > 64) return fail(cmd, "--pages: must be between 1 and 64", 2);
+  if (a.repeats < 1 || a.repeats > 100) return fail(cmd, "--repeats: must be between 1 and 100", 2);
+  auto assets = load_scene_and_assets(a.scene);
+  if (!assets) return fail(cmd, assets.error().message, 2);
+  const VtConfig& vt = assets->desc.vt;
+  for (uint32_t m : a.mips)
+    if (m < 1 || m > 6 || m >= vt.mip_count())
+      return fail(cmd, "--mips: each mip must be between 1 and 6 (ground truth supersamples 2^m) and below " +
+                           std::to_string(vt.mip_count()), 2);
+  vk::ContextOptions co;
+  co.device = a.gpu_name;
+  auto ctx = vk::Context::create(co);
+  if (!ctx) return fail(cmd, ctx.error().message, 1);
+  auto packed = pack_scene(assets.value(), options_for(*method));
+  if (!packed) return fail(cmd, packed.error().message, 2);
+  auto composer = GpuComposer::create(*ctx.value(), packed.value(), a.pages);
+  if (!composer) return fail(cmd, composer.error().message, 1);
+  GpuComposer& c = *composer.value();
+
+  std::printf("terravt bench mips: method %s, %u pages per mip, device %s\n\n", a.method.c_str(), a.pages,
+              ctx.value()->device_name().c_str());
+  std::printf("%4s %-16s %12s %10s %12s\n", "mip", "strategy", "ms/page", "PSNR dB", "cost vs direct");
+  for (uint32_t m : a.mips) {
+    const int side = int(std::ceil(std::sqrt(double(a.pages)))) * int(vt.page_texels);
+    std::vector<PageId> pages = pages_covering(vt, interesting_region(assets.value(), m, side, side));
+    pages.resize(std::min<size_t>(pages.size(), a.pages));
+    std::vector<uint32_t> strategies = {1};
+    for (uint32_t s = 2; s < (1u << m); s *= 2) strategies.push_back(s);
+    strategies.push_back(1u << m);  // ground truth
+    std::vector<std::vector<std::vector<uint8_t>>> results;
+    std::vector<double> best(strategies.size(), 1e300);
+    for (int round = 0; round <= a.repeats; ++round)
+      for (size_t i = 0; i < strategies.size(); ++i) {
+        gpu::TvtComposeParams params = packed->params;
+        params.supersample = int(strategies[i]);
+        c.set_params(params);
+        if (round == 0) {
+          results.push_back(c.compose_pages(pages));  // also the warm-up
+          continue;
+        }
+        best[i] = std::min(best[i], c.time_batch(pages, 1));
+      }
+    const auto& truth = results.back();
+    for (size_t i = 0; i < strategies.size(); ++i) {
+      double psnr = 0;
+      for (size_t p = 0; p < pages.size(); ++p) psnr += psnr_rgb(results[i][p], truth[p]);
+      psnr /= double(pages.size());
+      const bool gt = i + 1 == strategies.size();
+      const std::string name = strategies[i] == 1 ? "direct" : (gt ? "ground truth " : "supersample ") +
+                                                                    std::to_string(strategies[i]) + "x" + std::to_string(strategies[i]);
+      const double ms = 1000.0 * best[i] / double(pages.size());
+      std::printf("%4u %-16s %12.2f %10.2f %11.1fx\n", m, name.c_str(), ms, psnr, best[i] / best[0]);
+    }
+  }
+  return 0;
+}
+
 const CommandRegistrar k_register{
-    "bench", "Benchmarks (compose: page composition throughput per method)", 90, [](CLI::App& app) -> RunFn {
+    "bench", "Benchmarks: compose (throughput per method), mips (mip strategies vs ground truth)", 90, [](CLI::App& app) -> RunFn {
       app.require_subcommand(1);
       auto a = std::make_shared<BenchComposeArgs>();
       CLI::App* c = app.add_subcommand("compose", "Pages/s and Mtexel/s of every method, GPU vs CPU reference");
@@ -162,7 +248,19 @@ const CommandRegistrar k_register{
       c->add_option("--gpu", a->gpu_name, "Vulkan device name substring or index");
       c->add_option("--json", a->json_out, "Also write the figures as JSON");
       c->add_flag("--skip-cpu", a->skip_cpu, "Do not time the CPU reference");
-      return [a, c] { return c->parsed() ? run_bench_compose(*a) : 2; };
+      auto m = std::make_shared<BenchMipsArgs>();
+      CLI::App* mc = app.add_subcommand("mips", "Direct vs supersampled mip composition against the box-filtered ground truth");
+      mc->add_option("--scene", m->scene, "Scene JSON file (default: the built-in scene)")->check(CLI::ExistingFile);
+      mc->add_option("--method", m->method, "Transition method")->capture_default_str();
+      mc->add_option("--mips", m->mips, "Mip levels (1..6)")->delimiter(',');
+      mc->add_option("--pages", m->pages, "Pages per mip")->capture_default_str();
+      mc->add_option("--repeats", m->repeats, "Interleaved timing rounds")->capture_default_str();
+      mc->add_option("--gpu", m->gpu_name, "Vulkan device name substring or index");
+      return [a, c, m, mc] {
+        if (c->parsed()) return run_bench_compose(*a);
+        if (mc->parsed()) return run_bench_mips(*m);
+        return 2;
+      };
     }};
 
 }  // namespace
