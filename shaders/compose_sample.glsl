@@ -1,0 +1,206 @@
+// Composition of one sample (DESIGN §4), shared by compose.comp (pages into the cache) and the
+// direct-splat baseline fragment shader. Same maths as compose/reference_compositor.cpp, in fp32
+// on top of exact 64-bit integer terrain coordinates: only small in-cell remainders ever become
+// floats. The includer declares, before including this file:
+//   TvtComposeParams P; uint material_texels[]; uint meta_texels[]; float weights[];
+// and enables GL_EXT_shader_explicit_arithmetic_types_int64.
+#ifndef TVT_COMPOSE_SAMPLE_GLSL
+#define TVT_COMPOSE_SAMPLE_GLSL
+
+float clamp01(float v) { return (isnan(v) || isinf(v)) ? 0.0 : clamp(v, 0.0, 1.0); }
+float safe_pow(float b, float e) { return b <= 0.0 ? 0.0 : pow(b, e); }
+float blend_map(float b, float a, float s) { return smoothstep(1.0 - clamp01(b) - s, 1.0 - clamp01(b) + s, s + a * (1.0 - 2.0 * s)); }
+float ramp(float v, float lo, float hi) {
+  if (hi <= lo) return v >= lo ? 1.0 : 0.0;
+  return clamp((v - lo) / (hi - lo), 0.0, 1.0);
+}
+
+// Bilinear weight at a terrain position, clamped at the terrain edge. The position becomes a
+// float only after clamping, as a fraction of the terrain: its rounding (2^-24 of the terrain,
+// at most 2^-11 of a weight texel for grids up to 8192) is far below what the smooth weight
+// fields resolve, and it keeps the hot path in 32-bit arithmetic.
+float weight_at(int layer, int64_t x_fp, int64_t y_fp) {
+  const int shift = P.log2_vt + TVT_FIXED_BITS;
+  const int64_t vt_fp = int64_t(1) << shift;
+  const float inv = exp2(-float(shift));
+  const float u = float(clamp(x_fp, int64_t(0), vt_fp)) * inv * float(P.weight_width) - 0.5;
+  const float v = float(clamp(y_fp, int64_t(0), vt_fp)) * inv * float(P.weight_height) - 0.5;
+  const float fu = floor(u), fv = floor(v);
+  const float fx = u - fu, fy = v - fv;
+  const int x0 = clamp(int(fu), 0, P.weight_width - 1), x1 = clamp(int(fu) + 1, 0, P.weight_width - 1);
+  const int y0 = clamp(int(fv), 0, P.weight_height - 1), y1 = clamp(int(fv) + 1, 0, P.weight_height - 1);
+  const int base = layer * P.weight_height;
+  const float w00 = weights[(base + y0) * P.weight_width + x0], w10 = weights[(base + y0) * P.weight_width + x1];
+  const float w01 = weights[(base + y1) * P.weight_width + x0], w11 = weights[(base + y1) * P.weight_width + x1];
+  return clamp01(mix(mix(w00, w10, fx), mix(w01, w11, fx), fy));
+}
+
+// Resolutions are powers of two, so wrapping is a mask (also right for negative indices) and
+// the mip chain offset has a closed form: sum_{j<l} (R>>j)^2 = (R^2 - (R>>l)^2) * 4/3.
+vec4 material_texel(int n, int level, int x, int y) {
+  const uint res = uint(P.materials[n].resolution);
+  const uint rl = res >> uint(level);
+  const uint offset = P.materials[n].texel_offset + (res * res - rl * rl) / 3u * 4u;
+  return unpackUnorm4x8(material_texels[offset + (uint(y) & (rl - 1u)) * rl + (uint(x) & (rl - 1u))]);
+}
+
+vec4 material_bilinear(int n, int level, float u, float v) {
+  const float scale = exp2(-float(level));
+  const float ul = u * scale - 0.5, vl = v * scale - 0.5;
+  const float fi = floor(ul), fj = floor(vl);
+  const float fx = ul - fi, fy = vl - fj;
+  const int i = int(fi), j = int(fj);
+  return mix(mix(material_texel(n, level, i, j), material_texel(n, level, i + 1, j), fx),
+             mix(material_texel(n, level, i, j + 1), material_texel(n, level, i + 1, j + 1), fx), fy);
+}
+
+// Tile-local material coordinate (float, [0,R)) and global material texel index (exact).
+void material_coord(int n, int64_t pos_fp, out float local_, out int64_t global_) {
+  const int64_t period = P.materials[n].period_fp;
+  const int64_t num = pos_fp * int64_t(P.materials[n].resolution);
+  global_ = tvt_floor_div(num, period);
+  const int64_t rem = num - global_ * period;
+  local_ = float(global_ & int64_t(P.materials[n].resolution - 1)) + float(rem) / float(period);
+}
+
+float material_lod(int n, float footprint) {
+  return log2(footprint * float(P.materials[n].resolution) * 256.0 / float(P.materials[n].period_fp));
+}
+
+vec4 sample_material(int n, int64_t x_fp, int64_t y_fp, float lod) {
+  float u, v;
+  int64_t gx, gy;
+  material_coord(n, x_fp, u, gx);
+  material_coord(n, y_fp, v, gy);
+  const float l = clamp(lod, 0.0, float(P.materials[n].mip_count - 1));
+  const int l0 = int(floor(l));
+  const int l1 = min(l0 + 1, P.materials[n].mip_count - 1);
+  const float t = l - float(l0);
+  const vec4 a = material_bilinear(n, l0, u, v);
+  if (t <= 0.0 || l1 == l0) return a;
+  return mix(a, material_bilinear(n, l1, u, v), t);
+}
+
+// DPT eq 4.1-4.4, Algorithms 2-3.
+void dpt(int n, int64_t x_fp, int64_t y_fp, float footprint, float plain, float height_a, out float b_out, out float h_out) {
+  float b = 0.0, h = 0.0, fade_max = 0.0;
+  const int layers = P.materials[n].dpt_layer_count;
+  for (int k = 0; k < layers; ++k) {
+    const float fade = ramp(P.materials[n].dpt[k].patch_texels / footprint, P.materials[n].dpt_fade_lo,
+                            P.materials[n].dpt_fade_hi);
+    fade_max = max(fade_max, fade);
+    if (fade <= 0.0) continue;
+    const int64_t ps = P.materials[n].dpt[k].patch_fp;
+    const int64_t ix = tvt_floor_div(x_fp, ps), iy = tvt_floor_div(y_fp, ps);
+    const float fx = float(x_fp - ix * ps) / float(ps);
+    const float fy = float(y_fp - iy * ps) / float(ps);
+    // m_j = p_j > 0 && r_j^R <= p_j^P (eq 4.1, 4.2), compared in the log domain: two log2
+    // instead of two pow; r is never 0, and p = 0 fails the first test.
+    const int layer_w = P.materials[n].weight_layer;
+    const float ep = P.materials[n].dpt[k].exp_p, er = P.materials[n].dpt[k].exp_r;
+    const uint salt = P.materials[n].dpt[k].salt;
+    const int64_t half_patch = ps / 2;
+    float m[4];
+    for (int c = 0; c < 4; ++c) {
+      const int64_t jx = ix + int64_t(c & 1), jy = iy + int64_t(c >> 1);
+      const float w = weight_at(layer_w, jx * ps + half_patch, jy * ps + half_patch);
+      const float r = tvt_rand01(tvt_hash_coord(jx, jy, salt));
+      m[c] = (w > 0.0 && er * log2(r) <= ep * log2(w)) ? 1.0 : 0.0;
+    }
+    const float bl = mix(mix(m[0], m[1], fx), mix(m[2], m[3], fx), fy);
+    const float w = safe_pow(bl, P.materials[n].dpt[k].exp_w);
+    b += fade * w;
+    h += fade * w * P.materials[n].dpt[k].height_h;
+  }
+  b = min(b, 1.0);
+  h = min(h, 1.0);
+  b = blend_map(b, height_a, P.materials[n].blend_sharpness);
+  b_out = fade_max * b + (1.0 - fade_max) * blend_map(plain, height_a, P.materials[n].blend_sharpness);
+  h_out = h;
+}
+
+vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_mask) {
+  footprint = (isnan(footprint) || isinf(footprint)) ? 1.0 : max(footprint, 1.0 / 256.0);
+  float wts[TVT_MAX_MATERIALS];
+  for (int n = 0; n < P.material_count; ++n)
+    wts[n] = (material_mask & (1u << uint(n))) != 0u ? weight_at(P.materials[n].weight_layer, x_fp, y_fp) : 0.0;
+
+  vec4 result = sample_material(0, x_fp, y_fp, material_lod(0, footprint));
+  float weight_sum = wts[0];
+  bool feature_above = false;
+
+  for (int n = 1; n < P.material_count; ++n) {
+    // Culled on the host: zero weight everywhere within reach, so b = 0 (material_culling.h).
+    if ((material_mask & (1u << uint(n))) == 0u) continue;
+    const float plain = wts[n];
+    weight_sum += plain;
+    const int mode = P.materials[n].mode;
+    if (plain <= 0.0 && (mode == TVT_MODE_LINEAR || mode == TVT_MODE_BLENDMAP)) continue;
+
+    const float lod = material_lod(n, footprint);
+    vec4 colour = sample_material(n, x_fp, y_fp, lod);
+    float b = 0.0;
+    float height = colour.a;
+    bool visible = false;
+
+    if (mode == TVT_MODE_LINEAR) {
+      b = weight_sum > 0.0 ? min(1.0, P.linear_boost * plain / weight_sum) : 0.0;
+    } else if (mode == TVT_MODE_BLENDMAP) {
+      b = blend_map(plain, colour.a, P.materials[n].blend_sharpness);
+    } else if (mode == TVT_MODE_DPT) {
+      dpt(n, x_fp, y_fp, footprint, plain, colour.a, b, height);
+    } else {
+      float non_feature = 0.0;
+      float dpt_h = colour.a;
+      if (mode == TVT_MODE_FBPB_DPT) dpt(n, x_fp, y_fp, footprint, plain, colour.a, non_feature, dpt_h);
+      const float fade = 1.0 - ramp(lod, P.materials[n].fbpb_fade_lo, P.materials[n].fbpb_fade_hi);
+      const float fallback = mode == TVT_MODE_FBPB_DPT ? non_feature : blend_map(plain, colour.a, P.materials[n].blend_sharpness);
+      float w = 0.0;
+      if (fade > 0.0) {
+        const int64_t R = int64_t(P.materials[n].resolution);
+        int64_t gx, gy;
+        float u, v;
+        material_coord(n, x_fp, u, gx);
+        material_coord(n, y_fp, v, gy);
+        const int64_t lx = gx & (R - 1), ly = gy & (R - 1);
+        const uint mi = P.materials[n].meta_offset + uint(ly * R + lx);
+        const uint w0 = meta_texels[2u * mi], w1 = meta_texels[2u * mi + 1u];
+        const int64_t dx = int64_t(bitfieldExtract(int(w0), 0, 16));
+        const int64_t dy = int64_t(bitfieldExtract(int(w0), 16, 16));
+        float d = float(w1 & 0xffu);
+        const float f = float((w1 >> 8u) & 0xffu) / 255.0;
+        const int64_t cx = gx + dx, cy = gy + dy;
+        const int64_t period = P.materials[n].period_fp;
+        const int shift = P.materials[n].log2_resolution + 1;  // / 2R, a power of two
+        const int64_t cx_fp = ((2 * cx + 1) * period) >> shift;
+        const int64_t cy_fp = ((2 * cy + 1) * period) >> shift;
+        const float pw = d > 0.0 ? weight_at(P.materials[n].weight_layer, cx_fp, cy_fp) : plain;
+        const float r = tvt_rand01(tvt_hash_coord(cx, cy, P.materials[n].fbpb_salt));
+        visible = d > 0.0 && pw > 0.0 && r <= pw * P.materials[n].cf;
+        if (visible && pw < 1.0) {
+          const uint hv = tvt_hash_coord(cx, cy, P.materials[n].variation_salt);
+          const int64_t vx = (lx + int64_t(hv & 0xffffu)) & (R - 1);
+          const int64_t vy = (ly + int64_t(hv >> 16u)) & (R - 1);
+          const uint vw = meta_texels[2u * (P.materials[n].meta_offset + uint(vy * R + vx)) + 1u];
+          const float variation = float((vw >> 16u) & 0xffu) / 255.0;
+          if (variation < P.materials[n].variation_threshold) {
+            d = 0.0;
+            visible = false;
+            colour.rgb *= P.materials[n].colour_coeff;
+          }
+        }
+        const float nf = mode == TVT_MODE_FBPB_DPT ? non_feature : pw;
+        w = visible ? min(P.materials[n].cm * max(pw, f), 1.0) : min((1.0 - d) * nf * P.materials[n].cn, 1.0);
+      }
+      b = fade * w + (1.0 - fade) * fallback;
+      visible = visible && fade > 0.0;
+      if (mode == TVT_MODE_FBPB_DPT) height = dpt_h;
+    }
+    const float bn = (visible || !feature_above) ? clamp01(b) : 0.0;
+    feature_above = feature_above || visible;
+    result = vec4(mix(result.rgb, colour.rgb, bn), mix(result.a, height, bn));
+  }
+  return vec4(clamp01(result.r), clamp01(result.g), clamp01(result.b), clamp01(result.a));
+}
+
+#endif
