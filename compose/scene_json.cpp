@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "compose/procedural.h"
 #include "compose/scene.h"
 
 namespace tvt {
@@ -32,7 +33,6 @@ using Ptr = json::json_pointer;
 
 constexpr double k_inf = std::numeric_limits<double>::infinity();
 constexpr uint32_t k_u32_max = std::numeric_limits<uint32_t>::max();
-constexpr std::array<std::string_view, 6> k_generators{"sand", "grass", "rock", "mud", "cobbles", "bricks"};
 constexpr std::array<char, 4> k_channels{'r', 'g', 'b', 'a'};
 constexpr size_t k_max_materials = 16;
 constexpr size_t k_max_dpt_layers = 4;
@@ -370,9 +370,7 @@ class Parser {
     if (generator) {
       if (const json* f = field(v, "height")) fail(at / "height", "only allowed with \"image\"", *f);
       t.generator = text(*generator, at / "generator");
-      bool known = false;
-      for (std::string_view g : k_generators) known = known || g == t.generator;
-      if (!known) fail(at / "generator", "must be one of sand, grass, rock, mud, cobbles, bricks", *generator);
+      if (!is_known_generator(t.generator)) fail(at / "generator", "must be one of sand, grass, rock, mud, cobbles, bricks", *generator);
       if (const json* f = field(v, "resolution")) t.resolution = uint(*f, at / "resolution", 16, 4096, true);
       if (const json* f = field(v, "seed")) t.seed = uint(*f, at / "seed", 0, k_u32_max);
       return t;
