@@ -86,6 +86,7 @@ struct InvariantParams {
 void run_invariants(const InvariantParams& ip) {
   const VtConfig config = make_config(ip.log2_size);
   const uint32_t v = uint32_t(config.size_texels());
+  uint64_t total_evicted = 0, total_failed = 0, total_produced = 0;
   for (int seed = 0; seed < ip.seeds; ++seed) {
     std::mt19937 rng(uint32_t(seed * 1000003 + int(ip.log2_size)));
     ResidencyOptions o;
@@ -154,6 +155,9 @@ void run_invariants(const InvariantParams& ip) {
       ASSERT_EQ(st.resident, resident.size());
       ASSERT_EQ(st.in_flight, in_flight.size());
       ASSERT_LE(st.resident + st.in_flight, ip.slots);
+      total_evicted += st.evicted;
+      total_failed += st.failed;
+      total_produced += st.produced;
 
       // Pinned pages, once resident, stay resident.
       for (const PageId& p : pinned_seen_resident) ASSERT_TRUE(res.is_resident(p)) << to_string(p);
@@ -195,6 +199,10 @@ void run_invariants(const InvariantParams& ip) {
       }
     }
   }
+  // The streams must exercise the paths they check.
+  EXPECT_GT(total_evicted, 0u);
+  EXPECT_GT(total_failed, 0u);
+  EXPECT_GT(total_produced, total_evicted);
 }
 
 }  // namespace
