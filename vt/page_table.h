@@ -22,28 +22,23 @@
 #include <unordered_map>
 #include <vector>
 
+#include "shaders/shared/page_table_entry.h"
 #include "vt/vt_config.h"
 
 namespace tvt {
 
-// ---- Entry layout (one uint32; GLSL must decode it identically) ----
-//   bits  0..19  slot of the data page (physical cache slot, < 2^20)
-//   bits 20..24  mip of the data page (>= the entry's own mip; < 32)
-//   bits 25..30  zero (reserved)
-//   bit  31      valid
-inline constexpr uint32_t kEntrySlotBits = 20;
-inline constexpr uint32_t kEntrySlotMask = (1u << kEntrySlotBits) - 1u;
-inline constexpr uint32_t kEntryMipShift = 20;
-inline constexpr uint32_t kEntryMipMask = 0x1fu;
-inline constexpr uint32_t kEntryValid = 1u << 31;
+// ---- Entry layout: one uint32, defined once in shaders/shared/page_table_entry.h ----
+inline constexpr uint32_t kEntrySlotBits = gpu::TVT_PTE_SLOT_BITS;
+inline constexpr uint32_t kEntrySlotMask = gpu::TVT_PTE_SLOT_MASK;
+inline constexpr uint32_t kEntryMipShift = gpu::TVT_PTE_MIP_SHIFT;
+inline constexpr uint32_t kEntryMipMask = gpu::TVT_PTE_MIP_MASK;
+inline constexpr uint32_t kEntryValid = gpu::TVT_PTE_VALID;
 inline constexpr uint32_t kMaxSlots = 1u << kEntrySlotBits;
 
-constexpr uint32_t pack_entry(uint32_t slot, uint32_t data_mip) {
-  return kEntryValid | ((data_mip & kEntryMipMask) << kEntryMipShift) | (slot & kEntrySlotMask);
-}
-constexpr bool entry_valid(uint32_t e) { return (e & kEntryValid) != 0; }
-constexpr uint32_t entry_slot(uint32_t e) { return e & kEntrySlotMask; }
-constexpr uint32_t entry_mip(uint32_t e) { return (e >> kEntryMipShift) & kEntryMipMask; }
+constexpr uint32_t pack_entry(uint32_t slot, uint32_t data_mip) { return gpu::tvt_pte_pack(slot, data_mip); }
+constexpr bool entry_valid(uint32_t e) { return gpu::tvt_pte_valid(e); }
+constexpr uint32_t entry_slot(uint32_t e) { return gpu::tvt_pte_slot(e); }
+constexpr uint32_t entry_mip(uint32_t e) { return gpu::tvt_pte_mip(e); }
 
 struct PageTableOptions {
   uint32_t window_pages = 128;  // W: entries per side of each windowed mip; power of two, 4..4096
