@@ -45,6 +45,7 @@ class GpuComposer {
   double time_batch(std::span<const PageId> pages, int repeats);
 
   vk::Image& output() { return output_; }
+  const vk::Image& output() const { return output_; }
   uint32_t slots() const { return slots_; }
   uint32_t slot_texels() const { return slot_texels_; }
 

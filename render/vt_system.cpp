@@ -1,0 +1,134 @@
+#include "render/vt_system.h"
+
+#include <embedded_shaders.h>
+
+#include <algorithm>
+#include <cstring>
+
+#include "render/vt_info.h"
+#include "shaders/shared/vt_bindings.h"
+
+namespace tvt {
+
+Result<std::unique_ptr<VtSystem>> VtSystem::create(vk::Context& context, const PackedScene& scene,
+                                                   const VtSystemOptions& options) {
+  VtConfig vt;
+  vt.log2_size = uint32_t(scene.params.log2_vt);
+  vt.page_texels = uint32_t(scene.params.page_texels);
+  vt.border_texels = uint32_t(scene.params.border_texels);
+  ResidencyOptions ro;
+  ro.slot_count = options.cache_slots;
+  ro.window_pages = options.window_pages;
+  ro.max_requests_per_frame = options.page_budget;
+  ro.pinned_mips = options.pinned_mips;
+  if (auto s = Residency::validate(vt, ro, "vt"); !s) return s.error();
+  if (options.page_budget > options.cache_slots)
+    return make_error("vt: page_budget (" + std::to_string(options.page_budget) + ") exceeds cache_slots (" +
+                      std::to_string(options.cache_slots) + ")");
+
+  std::unique_ptr<VtSystem> v(new VtSystem(vt, ro));
+  v->context_ = &context;
+  v->vt_ = vt;
+  v->options_ = options;
+  auto composer = GpuComposer::create(context, scene, options.cache_slots);
+  if (!composer) return composer.error();
+  v->composer_ = std::move(composer.value());
+
+  const PageTable& table = v->residency_.page_table();
+  const auto entries = table.all_entries();
+  v->entry_buffer_ = context.create_buffer(entries.size_bytes(),
+                                           VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT, false);
+  context.upload(v->entry_buffer_, entries.data(), entries.size_bytes());
+  v->info_buffer_ = context.create_buffer(sizeof(gpu::TvtVtInfo), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+  const gpu::TvtVtInfo info = make_vt_info(vt, table, 0.f);
+  std::memcpy(v->info_buffer_.mapped(), &info, sizeof(info));
+  // A recentre can rewrite every entry; nothing else writes more in one frame.
+  v->update_capacity_ = uint32_t(entries.size());
+  v->update_buffer_ = context.create_buffer(VkDeviceSize(v->update_capacity_) * 8, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+
+  const vk::ComputeBinding bindings[] = {{TVT_BIND_SCATTER_ENTRIES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                                         {TVT_BIND_SCATTER_UPDATES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}};
+  v->scatter_ = context.create_compute_pipeline(shaders::page_table_scatter_comp(), bindings, sizeof(gpu::TvtScatterPush));
+  v->scatter_set_ = context.allocate_descriptor_set(v->scatter_);
+  v->scatter_set_.write_buffer(TVT_BIND_SCATTER_ENTRIES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, v->entry_buffer_);
+  v->scatter_set_.write_buffer(TVT_BIND_SCATTER_UPDATES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, v->update_buffer_);
+
+  VkSamplerCreateInfo si{};
+  si.sType = VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO;
+  si.magFilter = VK_FILTER_LINEAR;
+  si.minFilter = VK_FILTER_LINEAR;
+  si.mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST;
+  si.addressModeU = si.addressModeV = si.addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
+  si.maxLod = 0.f;
+  TVT_VK_CHECK(vkCreateSampler(context.device(), &si, nullptr, &v->sampler_));
+  return v;
+}
+
+VtSystem::~VtSystem() {
+  if (sampler_ != VK_NULL_HANDLE) vkDestroySampler(context_->device(), sampler_, nullptr);
+}
+
+void VtSystem::begin_frame(uint64_t frame, uint32_t camera_x, uint32_t camera_y, std::span<const PageFeedback> feedback) {
+  stats_ = VtFrameStats{};
+  residency_.set_centre(camera_x, camera_y);
+  residency_.begin_frame(frame, feedback);
+  const auto t0 = std::chrono::steady_clock::now();
+  jobs_.clear();
+  while (jobs_.size() < options_.page_budget) {
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    if (ms > options_.time_budget_ms) break;
+    auto r = residency_.next_request();
+    if (!r) break;
+    jobs_.push_back(PageJob{r->page, r->slot});
+  }
+  stats_.select_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  stats_.composed = uint32_t(jobs_.size());
+  // Evictions happened in next_request(): their unmaps must reach the GPU before anything
+  // samples this frame, together with the recentred windows.
+  pending_updates_ = residency_.take_table_updates();
+  const gpu::TvtVtInfo info = make_vt_info(vt_, residency_.page_table(), float(residency_.mip_bias()));
+  std::memcpy(info_buffer_.mapped(), &info, sizeof(info));
+}
+
+void VtSystem::record(VkCommandBuffer cmd) {
+  composer_->record(cmd, jobs_);
+  TVT_CHECK(pending_updates_.size() <= update_capacity_);
+  auto* dst = static_cast<uint32_t*>(update_buffer_.mapped());
+  const PageTable& table = residency_.page_table();
+  for (size_t i = 0; i < pending_updates_.size(); ++i) {
+    dst[2 * i] = table.window(pending_updates_[i].mip).offset + pending_updates_[i].index;
+    dst[2 * i + 1] = pending_updates_[i].value;
+  }
+  stats_.table_updates = uint32_t(pending_updates_.size());
+  if (!pending_updates_.empty()) {
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, scatter_.handle());
+    const VkDescriptorSet set = scatter_set_.handle();
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, scatter_.layout(), 0, 1, &set, 0, nullptr);
+    const gpu::TvtScatterPush push{uint32_t(pending_updates_.size())};
+    vkCmdPushConstants(cmd, scatter_.layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
+    vkCmdDispatch(cmd, (push.count + gpu::TVT_SCATTER_GROUP - 1) / gpu::TVT_SCATTER_GROUP, 1, 1);
+  }
+  pending_updates_.clear();
+  // Composed texels and scattered entries become visible to every later read.
+  VkMemoryBarrier barrier{};
+  barrier.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
+  barrier.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
+  barrier.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_TRANSFER_READ_BIT;
+  vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+                       VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT |
+                           VK_PIPELINE_STAGE_TRANSFER_BIT,
+                       0, 1, &barrier, 0, nullptr, 0, nullptr);
+}
+
+void VtSystem::end_frame() {
+  for (const PageJob& j : jobs_) residency_.complete(j.page);
+  jobs_.clear();
+  stats_.residency = residency_.stats();
+}
+
+uint64_t VtSystem::gpu_bytes() const {
+  const uint64_t slot = uint64_t(vt_.slot_texels()) * vt_.slot_texels() * 4;
+  return entry_buffer_.size() + info_buffer_.size() + slot * options_.cache_slots;
+}
+
+}  // namespace tvt
