@@ -153,7 +153,9 @@ VkFence FeedbackCompactor::record(VkCommandBuffer cmd, const vk::Buffer& feedbac
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, insert_pipeline_.handle());
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, insert_pipeline_.layout(), 0, 1, &set, 0, nullptr);
   vkCmdPushConstants(cmd, insert_pipeline_.layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
-  vkCmdDispatch(cmd, group_count(texel_count()), 1, 1);
+  const uint32_t invocations = (texel_count() + gpu::TVT_FEEDBACK_TEXELS_PER_INVOCATION - 1) /
+                               gpu::TVT_FEEDBACK_TEXELS_PER_INVOCATION;
+  vkCmdDispatch(cmd, group_count(invocations), 1, 1);
 
   memory_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT,
                  VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT);
@@ -223,17 +225,18 @@ std::optional<FeedbackResult> FeedbackCompactor::read_blocking(uint64_t frame) {
 }
 
 double FeedbackCompactor::time_compaction(const vk::Buffer& feedback, int repeats) {
-  repeats = std::max(repeats, 1);
-  const auto start = std::chrono::steady_clock::now();
-  for (int i = 0; i < repeats; ++i) {
+  std::vector<double> seconds(size_t(std::max(repeats, 1)));
+  for (double& t : seconds) {
     const uint64_t frame = next_frame_;
+    const auto start = std::chrono::steady_clock::now();
     // The slot of `frame` was waited for by the previous iteration (or never used).
     TVT_CHECK(submit(feedback, frame));
     const VkFence fence = slots_[frame % slots_.size()].fence;
     TVT_VK_CHECK(vkWaitForFences(context_->device(), 1, &fence, VK_TRUE, k_fence_timeout_ns));
+    t = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   }
-  const auto end = std::chrono::steady_clock::now();
-  return std::chrono::duration<double>(end - start).count() / repeats;
+  std::nth_element(seconds.begin(), seconds.begin() + seconds.size() / 2, seconds.end());
+  return seconds[seconds.size() / 2];
 }
 
 }  // namespace tvt

@@ -68,8 +68,8 @@ class FeedbackCompactor {
   std::optional<FeedbackResult> read_blocking(uint64_t frame);
 
   // Benchmark: submits `repeats` compactions of `feedback` one at a time, each waited for, and
-  // returns seconds per compaction (record + submit to fence signalled, wall clock; the
-  // CPU-side parse and sort of the list is not included).
+  // returns the median seconds per compaction (record + submit until the fence signalled, wall
+  // clock; the CPU-side parse and sort of the list is not included).
   double time_compaction(const vk::Buffer& feedback, int repeats);
 
  private:

@@ -21,6 +21,10 @@ TVT_CONST uint TVT_FEEDBACK_EMPTY_MIP = 31u;          // mip field value of an e
 TVT_CONST uint TVT_FEEDBACK_EMPTY_WORD = 0xffffffffu; // clear value of both words; also the
                                                       // "unclaimed" key word of a table entry
 TVT_CONST uint TVT_FEEDBACK_GROUP = 64u;              // invocations per workgroup, both passes
+// Consecutive texels one insert invocation reads; runs of equal texels among them are counted
+// with one atomicAdd (feedback is spatially coherent). Also 8x fewer workgroups, which is what
+// lavapipe pays for (docs/feedback.md).
+TVT_CONST uint TVT_FEEDBACK_TEXELS_PER_INVOCATION = 8u;
 
 // Descriptor bindings (set 0) of feedback_insert.comp and feedback_gather.comp.
 #define TVT_BIND_FEEDBACK_TEXELS 0  // readonly uvec2[width * height], the feedback texels
@@ -37,8 +41,7 @@ struct TvtFeedbackEntry {
 struct TvtFeedbackListHeader {  // 16 bytes, zeroed before the insert pass
   uint count;            // entries appended to the list by the gather pass
   uint overflow_texels;  // non-empty texels that found no table slot within max_probes
-  uint inserted_texels;  // non-empty texels counted in table entries
-  uint pad0;
+  uint pad0, pad1;
 };
 
 struct TvtFeedbackPush {  // 16 bytes
