@@ -69,7 +69,8 @@ TEST_F(GpuFeedback, MatchesCpuOnRandomImages) {
       {160, 90, 0, 1, 32768, vt_config(24, 16)},        // any page of V = 2^24: ~all distinct
       {320, 180, 0, 1, 131072, vt_config(24, 16)},
       {320, 180, 0, 12, 16384, vt_config(24, 128)},     // any page, spatially coherent
-      {320, 180, 2000, 1, 4096, vt_config(30, 16)},      // widest valid VT: 2^26 pages per side
+      {320, 180, 2000, 1, 4096, vt_config(30, 16)},
+      {161, 91, 37, 3, 256, vt_config(24, 16)},         // texel count not a multiple of 8 or 64      // widest valid VT: 2^26 pages per side
   };
   for (const Case& c : cases) {
     FeedbackCompactor::Options o;
@@ -113,6 +114,30 @@ TEST_F(GpuFeedback, AllEmptyAndSinglePageImages) {
     one[i + 1] = t[1];
   }
   expect_matches_cpu(*compactor, one, 1, "single page");
+}
+
+// Adversarial for the two-word claim: many pages share word0 (same mip and x) and race for the
+// same slots, differing only in word1; also the converse (same y, different x).
+TEST_F(GpuFeedback, PagesSharingOneKeyWordStayDistinct) {
+  FeedbackCompactor::Options o;
+  o.feedback_width = 320;
+  o.feedback_height = 180;
+  o.table_capacity = 512;
+  auto compactor = make(o);
+  ASSERT_TRUE(compactor);
+  for (uint64_t frame = 0; frame < 4; ++frame) {
+    std::vector<uint32_t> words(size_t(o.feedback_width) * o.feedback_height * 2);
+    uint32_t state = uint32_t(frame) * 7919u + 1u;
+    for (size_t i = 0; i < words.size(); i += 2) {
+      state = state * 1664525u + 1013904223u;
+      const uint32_t v = (state >> 8) % 200u;
+      const PageId p = frame % 2 ? PageId{3, 5, v} : PageId{3, v, 77};
+      const auto t = v == 199u ? k_feedback_empty_texel : feedback_texel(p);
+      words[i] = t[0];
+      words[i + 1] = t[1];
+    }
+    expect_matches_cpu(*compactor, words, frame, "shared word, frame " + std::to_string(frame));
+  }
 }
 
 TEST_F(GpuFeedback, ReportsOverflowWhenTheTableIsTooSmallAndRecovers) {
