@@ -1,0 +1,242 @@
+#include "render/feedback_compactor.h"
+
+#include <embedded_shaders.h>
+
+#include <algorithm>
+#include <bit>
+#include <chrono>
+#include <cstring>
+#include <string>
+
+#include "shaders/shared/feedback_types.h"
+
+namespace tvt {
+
+namespace {
+
+constexpr uint64_t k_fence_timeout_ns = 60ull * 1000 * 1000 * 1000;  // read_blocking: 60 s, then fatal
+
+void memory_barrier(VkCommandBuffer cmd, VkPipelineStageFlags src_stage, VkAccessFlags src_access,
+                    VkPipelineStageFlags dst_stage, VkAccessFlags dst_access) {
+  VkMemoryBarrier mb{};
+  mb.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
+  mb.srcAccessMask = src_access;
+  mb.dstAccessMask = dst_access;
+  vkCmdPipelineBarrier(cmd, src_stage, dst_stage, 0, 1, &mb, 0, nullptr, 0, nullptr);
+}
+
+uint32_t group_count(uint32_t invocations) {
+  return (invocations + gpu::TVT_FEEDBACK_GROUP - 1) / gpu::TVT_FEEDBACK_GROUP;
+}
+
+}  // namespace
+
+// One readback ring slot: the output list (host-visible, header + capacity entries), the
+// descriptor sets naming it, the fence of the submission that last wrote it, and which frame
+// that was.
+struct FeedbackCompactor::Slot {
+  vk::Buffer list;
+  vk::DescriptorSet insert_set, gather_set;
+  VkFence fence = VK_NULL_HANDLE;        // created signalled; reset by record()
+  VkCommandBuffer own_cmd = VK_NULL_HANDLE;  // used by submit()
+  bool has_frame = false;                // record() ran for `frame`
+  uint64_t frame = 0;
+};
+
+Result<std::unique_ptr<FeedbackCompactor>> FeedbackCompactor::create(vk::Context& context, const Options& options) {
+  const auto fail = [](const std::string& field, const std::string& what) {
+    return make_error("feedback compactor options: " + field + ": " + what);
+  };
+  if (options.feedback_width == 0 || options.feedback_height == 0 ||
+      uint64_t(options.feedback_width) * options.feedback_height > (uint64_t(1) << 28))
+    return fail("feedback_width x feedback_height", "must be between 1 and 2^28 texels, got " +
+                                                        std::to_string(options.feedback_width) + " x " +
+                                                        std::to_string(options.feedback_height));
+  if (options.table_capacity < gpu::TVT_FEEDBACK_GROUP || !std::has_single_bit(options.table_capacity) ||
+      options.table_capacity > (1u << 24))
+    return fail("table_capacity", "must be a power of two between 64 and 2^24, got " +
+                                      std::to_string(options.table_capacity));
+  if (options.max_probes == 0 || options.max_probes > options.table_capacity)
+    return fail("max_probes", "must be between 1 and table_capacity, got " + std::to_string(options.max_probes));
+  if (options.ring_size < 1 || options.ring_size > 16)
+    return fail("ring_size", "must be between 1 and 16, got " + std::to_string(options.ring_size));
+
+  std::unique_ptr<FeedbackCompactor> c(new FeedbackCompactor(context));
+  c->options_ = options;
+  const VkDevice device = context.device();
+
+  const vk::ComputeBinding insert_bindings[] = {{TVT_BIND_FEEDBACK_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                                                {TVT_BIND_FEEDBACK_TABLE, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                                                {TVT_BIND_FEEDBACK_LIST, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}};
+  const vk::ComputeBinding gather_bindings[] = {{TVT_BIND_FEEDBACK_TABLE, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+                                                {TVT_BIND_FEEDBACK_LIST, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}};
+  c->insert_pipeline_ =
+      context.create_compute_pipeline(shaders::feedback_insert_comp(), insert_bindings, sizeof(gpu::TvtFeedbackPush));
+  c->gather_pipeline_ =
+      context.create_compute_pipeline(shaders::feedback_gather_comp(), gather_bindings, sizeof(gpu::TvtFeedbackPush));
+
+  // The table starts (and, after every gather pass, ends) with every entry EMPTY.
+  const VkDeviceSize table_bytes = VkDeviceSize(options.table_capacity) * sizeof(gpu::TvtFeedbackEntry);
+  c->table_ = context.create_buffer(table_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                    false);
+  const std::vector<gpu::TvtFeedbackEntry> empty(
+      options.table_capacity,
+      gpu::TvtFeedbackEntry{gpu::TVT_FEEDBACK_EMPTY_WORD, gpu::TVT_FEEDBACK_EMPTY_WORD, 0u});
+  context.upload(c->table_, empty.data(), table_bytes);
+
+  VkCommandPoolCreateInfo pci{};
+  pci.sType = VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO;
+  pci.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
+  pci.queueFamilyIndex = context.queue_family();
+  TVT_VK_CHECK(vkCreateCommandPool(device, &pci, nullptr, &c->command_pool_));
+
+  const VkDeviceSize list_bytes = sizeof(gpu::TvtFeedbackListHeader) + table_bytes;
+  c->slots_.resize(options.ring_size);
+  for (Slot& s : c->slots_) {
+    s.list = context.create_buffer(list_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                   true);
+    s.insert_set = context.allocate_descriptor_set(c->insert_pipeline_);
+    s.insert_set.write_buffer(TVT_BIND_FEEDBACK_TABLE, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->table_);
+    s.insert_set.write_buffer(TVT_BIND_FEEDBACK_LIST, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, s.list);
+    s.gather_set = context.allocate_descriptor_set(c->gather_pipeline_);
+    s.gather_set.write_buffer(TVT_BIND_FEEDBACK_TABLE, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->table_);
+    s.gather_set.write_buffer(TVT_BIND_FEEDBACK_LIST, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, s.list);
+    VkFenceCreateInfo fci{};
+    fci.sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO;
+    fci.flags = VK_FENCE_CREATE_SIGNALED_BIT;
+    TVT_VK_CHECK(vkCreateFence(device, &fci, nullptr, &s.fence));
+    VkCommandBufferAllocateInfo cai{};
+    cai.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO;
+    cai.commandPool = c->command_pool_;
+    cai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+    cai.commandBufferCount = 1;
+    TVT_VK_CHECK(vkAllocateCommandBuffers(device, &cai, &s.own_cmd));
+  }
+  return c;
+}
+
+FeedbackCompactor::FeedbackCompactor(vk::Context& context) : context_(&context) {}
+
+FeedbackCompactor::~FeedbackCompactor() {
+  // A fence handed out by record() may never have been submitted, so waiting for the fences
+  // could hang: wait for the device instead, then nothing of ours is in use.
+  context_->wait_idle();
+  const VkDevice device = context_->device();
+  for (Slot& s : slots_) vkDestroyFence(device, s.fence, nullptr);
+  if (command_pool_ != VK_NULL_HANDLE) vkDestroyCommandPool(device, command_pool_, nullptr);
+}
+
+VkFence FeedbackCompactor::record(VkCommandBuffer cmd, const vk::Buffer& feedback, uint64_t frame) {
+  TVT_CHECK(frame >= next_frame_);
+  TVT_CHECK(feedback.size() >= feedback_bytes());
+  Slot& s = slots_[frame % slots_.size()];
+  // The slot's last submission must be complete before its sets and list are reused; if it is
+  // not, skip this frame's feedback instead of stalling.
+  if (vkGetFenceStatus(context_->device(), s.fence) != VK_SUCCESS) return VK_NULL_HANDLE;
+  next_frame_ = frame + 1;
+  TVT_VK_CHECK(vkResetFences(context_->device(), 1, &s.fence));
+  s.has_frame = true;
+  s.frame = frame;
+  s.insert_set.write_buffer(TVT_BIND_FEEDBACK_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, feedback);
+
+  const gpu::TvtFeedbackPush push{texel_count(), options_.table_capacity, options_.max_probes, 0u};
+  // Earlier writes of the feedback (any pass, this or an earlier submission) and the previous
+  // compaction's gather (which reads and resets the table) happen before this one.
+  memory_barrier(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, VK_ACCESS_MEMORY_WRITE_BIT,
+                 VK_PIPELINE_STAGE_TRANSFER_BIT | VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+                 VK_ACCESS_TRANSFER_WRITE_BIT | VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT);
+  vkCmdFillBuffer(cmd, s.list.handle(), 0, sizeof(gpu::TvtFeedbackListHeader), 0u);
+  memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
+                 VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT);
+
+  VkDescriptorSet set = s.insert_set.handle();
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, insert_pipeline_.handle());
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, insert_pipeline_.layout(), 0, 1, &set, 0, nullptr);
+  vkCmdPushConstants(cmd, insert_pipeline_.layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
+  const uint32_t invocations = (texel_count() + gpu::TVT_FEEDBACK_TEXELS_PER_INVOCATION - 1) /
+                               gpu::TVT_FEEDBACK_TEXELS_PER_INVOCATION;
+  vkCmdDispatch(cmd, group_count(invocations), 1, 1);
+
+  memory_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT,
+                 VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT);
+
+  set = s.gather_set.handle();
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, gather_pipeline_.handle());
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, gather_pipeline_.layout(), 0, 1, &set, 0, nullptr);
+  vkCmdPushConstants(cmd, gather_pipeline_.layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
+  vkCmdDispatch(cmd, group_count(options_.table_capacity), 1, 1);
+
+  memory_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT, VK_PIPELINE_STAGE_HOST_BIT,
+                 VK_ACCESS_HOST_READ_BIT);
+  return s.fence;
+}
+
+bool FeedbackCompactor::submit(const vk::Buffer& feedback, uint64_t frame) {
+  Slot& s = slots_[frame % slots_.size()];
+  // Checked here too: the command buffer is re-recorded only when its last submission is done.
+  if (vkGetFenceStatus(context_->device(), s.fence) != VK_SUCCESS) return false;
+  TVT_VK_CHECK(vkResetCommandBuffer(s.own_cmd, 0));
+  VkCommandBufferBeginInfo bi{};
+  bi.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO;
+  bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+  TVT_VK_CHECK(vkBeginCommandBuffer(s.own_cmd, &bi));
+  const VkFence fence = record(s.own_cmd, feedback, frame);
+  TVT_CHECK(fence != VK_NULL_HANDLE);
+  TVT_VK_CHECK(vkEndCommandBuffer(s.own_cmd));
+  VkSubmitInfo si{};
+  si.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
+  si.commandBufferCount = 1;
+  si.pCommandBuffers = &s.own_cmd;
+  TVT_VK_CHECK(vkQueueSubmit(context_->queue(), 1, &si, fence));
+  return true;
+}
+
+FeedbackResult FeedbackCompactor::parse(const Slot& slot) const {
+  const auto* bytes = static_cast<const uint8_t*>(slot.list.mapped());
+  gpu::TvtFeedbackListHeader header{};
+  std::memcpy(&header, bytes, sizeof(header));
+  TVT_CHECK(header.count <= options_.table_capacity);
+  std::vector<gpu::TvtFeedbackEntry> entries(header.count);
+  std::memcpy(entries.data(), bytes + sizeof(header), entries.size() * sizeof(gpu::TvtFeedbackEntry));
+  FeedbackResult r;
+  r.frame = slot.frame;
+  r.overflow = header.overflow_texels != 0;
+  r.overflow_texels = header.overflow_texels;
+  r.pages.reserve(entries.size());
+  for (const gpu::TvtFeedbackEntry& e : entries) r.pages.emplace_back(feedback_texel_page(e.key0, e.key1), e.count);
+  std::sort(r.pages.begin(), r.pages.end());
+  return r;
+}
+
+std::optional<FeedbackResult> FeedbackCompactor::try_read(uint64_t frame) {
+  const Slot& s = slots_[frame % slots_.size()];
+  if (!s.has_frame || s.frame != frame) return std::nullopt;
+  if (vkGetFenceStatus(context_->device(), s.fence) != VK_SUCCESS) return std::nullopt;
+  return parse(s);
+}
+
+std::optional<FeedbackResult> FeedbackCompactor::read_blocking(uint64_t frame) {
+  const Slot& s = slots_[frame % slots_.size()];
+  if (!s.has_frame || s.frame != frame) return std::nullopt;
+  const VkResult r = vkWaitForFences(context_->device(), 1, &s.fence, VK_TRUE, k_fence_timeout_ns);
+  if (r == VK_TIMEOUT) fatal(__FILE__, __LINE__, "vkWaitForFences", "feedback compaction did not finish within 60 s");
+  TVT_VK_CHECK(r);
+  return parse(s);
+}
+
+double FeedbackCompactor::time_compaction(const vk::Buffer& feedback, int repeats) {
+  std::vector<double> seconds(size_t(std::max(repeats, 1)));
+  for (double& t : seconds) {
+    const uint64_t frame = next_frame_;
+    const auto start = std::chrono::steady_clock::now();
+    // The slot of `frame` was waited for by the previous iteration (or never used).
+    TVT_CHECK(submit(feedback, frame));
+    const VkFence fence = slots_[frame % slots_.size()].fence;
+    TVT_VK_CHECK(vkWaitForFences(context_->device(), 1, &fence, VK_TRUE, k_fence_timeout_ns));
+    t = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
+  std::nth_element(seconds.begin(), seconds.begin() + seconds.size() / 2, seconds.end());
+  return seconds[seconds.size() / 2];
+}
+
+}  // namespace tvt
