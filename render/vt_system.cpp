@@ -36,8 +36,9 @@ Result<std::unique_ptr<VtSystem>> VtSystem::create(vk::Context& context, const P
 
   const PageTable& table = v->residency_.page_table();
   const auto entries = table.all_entries();
-  v->entry_buffer_ = context.create_buffer(entries.size_bytes(),
-                                           VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT, false);
+  v->entry_buffer_ = context.create_buffer(
+      entries.size_bytes(),
+      VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, false);
   context.upload(v->entry_buffer_, entries.data(), entries.size_bytes());
   v->info_buffer_ = context.create_buffer(sizeof(gpu::TvtVtInfo), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
   const gpu::TvtVtInfo info = make_vt_info(vt, table, 0.f);
