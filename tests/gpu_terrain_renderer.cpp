@@ -140,6 +140,39 @@ TEST_F(TerrainRenderTest, FlatGroundSeenStraightDownIsUniformlyShaded) {
         ASSERT_NEAR(int(img.at(x, y)[c]), int(want[size_t(c)]), 1) << x << "," << y << " channel " << c;
 }
 
+TEST_F(TerrainRenderTest, DefaultFlythroughFramesShowTerrainFromAboveGround) {
+  auto assets = load_scene_assets(default_scene());
+  ASSERT_TRUE(assets) << assets.error().message;
+  TerrainRendererOptions options;
+  options.width = 96;
+  options.height = 54;
+  options.texel_output = true;
+  auto renderer = TerrainRenderer::create(ctx(), *assets, options);
+  ASSERT_TRUE(renderer) << renderer.error().message;
+  TerrainRenderer& r = **renderer;
+  const TerrainMesh& mesh = r.mesh();
+  const CameraPath path = CameraPath::default_flythrough(
+      mesh.extent_m(), mesh.height_m(), [&](double x, double y) { return mesh.height_m_at(x, y); });
+  Camera lens;
+  lens.far_m = 2.0 * mesh.extent_m();
+  for (double t = path.start_time(); t <= path.end_time(); t += 3.0) {
+    const Camera cam = path.camera_at(t, lens);
+    EXPECT_GE(cam.position_m.z, mesh.height_m_at(cam.position_m.x, cam.position_m.y) + path.clearance_m() - 1e-9);
+    const ImageRGBA8 img = r.render(cam);
+    const std::vector<uint8_t> texels = r.target().read_color(1);
+    int covered = 0;
+    for (size_t i = 0; i < texels.size(); i += 16) {
+      uint32_t x;
+      std::memcpy(&x, &texels[i], 4);
+      covered += x != TerrainRenderer::kNoTexel ? 1 : 0;
+    }
+    EXPECT_GT(covered, img.width * img.height / 5) << "t = " << t;
+    for (size_t i = 0; i < img.texels.size(); i += 4)
+      ASSERT_FALSE(img.texels[i] == 255 && img.texels[i + 1] == 0 && img.texels[i + 2] == 255) << "t = " << t;
+    maybe_write(img, "terrain_flythrough_" + std::to_string(int(t)));
+  }
+}
+
 // Hilly or flat ground, white and unlit, over a black sky, seen from a low grazing angle with
 // several LODs in view: every pixel must be terrain (the view ends on the ground everywhere).
 int leaking_pixels(vk::Context& ctx, bool hilly, bool skirts, uint32_t* lods_seen) {
