@@ -1,6 +1,7 @@
 // Terrain raster pass (see terrain_renderer.h, docs/renderer.md).
 #include "render/terrain_renderer.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -98,8 +99,11 @@ gpu::TvtTerrainFrame TerrainRenderer::frame_constants(const Camera& camera) cons
   f.sun_color = v4(l.sun_color, l.ambient);
   f.sky = v4(l.sky_color, fog_density_);
   f.albedo_override = l.albedo_override ? v4(*l.albedo_override, 1.0) : glm::vec4(0.0f);
-  f.anchor_x = int64_t(std::floor(cx));
-  f.anchor_y = int64_t(std::floor(cy));
+  // Clamped to [-V/2, 3V/2] so every anchor-relative texel fits int32 (|.| <= 3V/2 < 2^31 for
+  // V <= 2^30); a camera farther out only loses sub-texel precision on a far-away terrain.
+  const double v = double(mesh_.vt_texels());
+  f.anchor_x = int64_t(std::floor(std::clamp(cx, -0.5 * v, 1.5 * v)));
+  f.anchor_y = int64_t(std::floor(std::clamp(cy, -0.5 * v, 1.5 * v)));
   f.camera = glm::vec4(float(cx - double(f.anchor_x)), float(cy - double(f.anchor_y)), float(camera.position_m.z),
                        float(mpt));
   const ImageF& hf = mesh_.heightfield();
@@ -145,7 +149,8 @@ void TerrainRenderer::record(VkCommandBuffer cmd, const Camera& camera) {
   const std::vector<ChunkDraw> draws = mesh_.select(camera, aspect(), &stats_.chunks);
   for (const ChunkDraw& d : draws) {
     gpu::TvtTerrainDraw push{};
-    const int64_t rx = d.origin_x - frame.anchor_x, ry = d.origin_y - frame.anchor_y;  // |.| <= 2^30 + 1
+    const int64_t rx = d.origin_x - frame.anchor_x, ry = d.origin_y - frame.anchor_y;  // |.| <= 3V/2
+    TVT_CHECK(rx > INT32_MIN && rx < INT32_MAX && ry > INT32_MIN && ry < INT32_MAX);
     push.rel_texel = glm::ivec2(int32_t(rx), int32_t(ry));
     push.quad_texels = mesh_.quad_texels();
     push.skirt_depth_m = float(d.skirt_depth_m);

@@ -22,7 +22,7 @@ struct TvtTerrainFrame {   // 192 bytes
   vec4 sun_color;          // rgb: sun colour (linear), a: ambient term
   vec4 sky;                // rgb: sky and fog colour (linear), a: fog density per metre
   vec4 albedo_override;    // a > 0: albedo is rgb instead of terrain_albedo() (tests, debugging)
-  vec4 camera;             // xy: camera position minus anchor in texels [0,1), z: camera z in metres, w: metres per texel
+  vec4 camera;             // xy: camera position minus anchor in texels ([0,1) over the terrain), z: camera z in metres, w: metres per texel
   vec4 terrain;            // x: height_m (metres at height 1), y, z: metres per heightfield texel in x, y, w: 0
   uvec4 hf;                // x, y: heightfield width, height; z: log2 V; w: 0
   int64_t anchor_x;        // camera's level-0 VT texel (floor of camera position / metres per texel)
@@ -31,7 +31,7 @@ struct TvtTerrainFrame {   // 192 bytes
 
 // Per draw (one chunk at one LOD).
 struct TvtTerrainDraw {    // 16 bytes
-  ivec2 rel_texel;         // chunk origin minus anchor, level-0 texels (exact: |.| < 2^31 for V <= 2^30)
+  ivec2 rel_texel;         // chunk origin minus anchor, level-0 texels (exact int32: anchor is clamped to [-V/2, 3V/2])
   uint quad_texels;        // level-0 texels per LOD-0 grid quad of the chunk
   float skirt_depth_m;     // how far skirt vertices hang below their edge vertex
 };
