@@ -544,11 +544,7 @@ ComputePipeline Context::create_compute_pipeline(std::span<const uint32_t> spirv
   plci.pPushConstantRanges = &range;
   TVT_VK_CHECK(vkCreatePipelineLayout(device_, &plci, nullptr, &p.layout_));
 
-  auto smci = init<VkShaderModuleCreateInfo>(VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO);
-  smci.codeSize = spirv.size_bytes();
-  smci.pCode = spirv.data();
-  VkShaderModule module = VK_NULL_HANDLE;
-  TVT_VK_CHECK(vkCreateShaderModule(device_, &smci, nullptr, &module));
+  const VkShaderModule module = create_shader_module(spirv);
 
   auto cpci = init<VkComputePipelineCreateInfo>(VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO);
   cpci.stage = init<VkPipelineShaderStageCreateInfo>(VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO);
@@ -564,13 +560,24 @@ ComputePipeline Context::create_compute_pipeline(std::span<const uint32_t> spirv
 
 DescriptorSet Context::allocate_descriptor_set(const ComputePipeline& pipeline) {
   TVT_CHECK(pipeline.set_layout_ != VK_NULL_HANDLE);
+  std::vector<VkDescriptorType> types;
+  for (const ComputeBinding& b : pipeline.bindings_) types.push_back(b.type);
+  return allocate_set(pipeline.set_layout_, types);
+}
+
+DescriptorSet Context::allocate_descriptor_set(const GraphicsPipeline& pipeline) {
+  TVT_CHECK(pipeline.set_layout_ != VK_NULL_HANDLE);
+  return allocate_set(pipeline.set_layout_, pipeline.types_);
+}
+
+DescriptorSet Context::allocate_set(VkDescriptorSetLayout layout, std::span<const VkDescriptorType> types) {
   DescriptorSet s;
   s.device_ = device_;
   std::vector<VkDescriptorPoolSize> sizes;
-  for (const ComputeBinding& b : pipeline.bindings_) {
-    auto it = std::find_if(sizes.begin(), sizes.end(), [&](const VkDescriptorPoolSize& ps) { return ps.type == b.type; });
+  for (const VkDescriptorType type : types) {
+    auto it = std::find_if(sizes.begin(), sizes.end(), [&](const VkDescriptorPoolSize& ps) { return ps.type == type; });
     if (it == sizes.end()) {
-      sizes.push_back({b.type, 1});
+      sizes.push_back({type, 1});
     } else {
       ++it->descriptorCount;
     }
@@ -584,9 +591,116 @@ DescriptorSet Context::allocate_descriptor_set(const ComputePipeline& pipeline) 
   auto ai = init<VkDescriptorSetAllocateInfo>(VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO);
   ai.descriptorPool = s.pool_;
   ai.descriptorSetCount = 1;
-  ai.pSetLayouts = &pipeline.set_layout_;
+  ai.pSetLayouts = &layout;
   TVT_VK_CHECK(vkAllocateDescriptorSets(device_, &ai, &s.set_));
   return s;
+}
+
+VkShaderModule Context::create_shader_module(std::span<const uint32_t> spirv) {
+  TVT_CHECK(!spirv.empty());
+  auto smci = init<VkShaderModuleCreateInfo>(VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO);
+  smci.codeSize = spirv.size_bytes();
+  smci.pCode = spirv.data();
+  VkShaderModule module = VK_NULL_HANDLE;
+  TVT_VK_CHECK(vkCreateShaderModule(device_, &smci, nullptr, &module));
+  return module;
+}
+
+GraphicsPipeline Context::create_graphics_pipeline(const GraphicsPipelineDesc& desc) {
+  TVT_CHECK(features_.dynamic_rendering);
+  TVT_CHECK(!desc.vertex_spirv.empty() && !desc.fragment_spirv.empty());
+  TVT_CHECK(desc.push_constant_bytes % 4 == 0);
+  TVT_CHECK(!desc.color_formats.empty() || desc.depth_format != VK_FORMAT_UNDEFINED);
+  GraphicsPipeline p;
+  p.device_ = device_;
+  p.push_stages_ = desc.push_constant_bytes ? desc.push_constant_stages : 0;
+
+  std::vector<VkDescriptorSetLayoutBinding> lb;
+  for (const GraphicsBinding& b : desc.bindings) {
+    lb.push_back({b.binding, b.type, 1, b.stages, nullptr});
+    p.types_.push_back(b.type);
+  }
+  auto dci = init<VkDescriptorSetLayoutCreateInfo>(VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO);
+  dci.bindingCount = uint32_t(lb.size());
+  dci.pBindings = lb.data();
+  TVT_VK_CHECK(vkCreateDescriptorSetLayout(device_, &dci, nullptr, &p.set_layout_));
+
+  const VkPushConstantRange range{desc.push_constant_stages, 0, desc.push_constant_bytes};
+  auto plci = init<VkPipelineLayoutCreateInfo>(VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO);
+  plci.setLayoutCount = 1;
+  plci.pSetLayouts = &p.set_layout_;
+  plci.pushConstantRangeCount = desc.push_constant_bytes ? 1u : 0u;
+  plci.pPushConstantRanges = &range;
+  TVT_VK_CHECK(vkCreatePipelineLayout(device_, &plci, nullptr, &p.layout_));
+
+  const VkShaderModule vs = create_shader_module(desc.vertex_spirv);
+  const VkShaderModule fs = create_shader_module(desc.fragment_spirv);
+  VkPipelineShaderStageCreateInfo stages[2];
+  for (int i = 0; i < 2; ++i) {
+    stages[i] = init<VkPipelineShaderStageCreateInfo>(VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO);
+    stages[i].stage = i == 0 ? VK_SHADER_STAGE_VERTEX_BIT : VK_SHADER_STAGE_FRAGMENT_BIT;
+    stages[i].module = i == 0 ? vs : fs;
+    stages[i].pName = "main";
+  }
+
+  auto vi = init<VkPipelineVertexInputStateCreateInfo>(VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO);
+  vi.vertexBindingDescriptionCount = uint32_t(desc.vertex_bindings.size());
+  vi.pVertexBindingDescriptions = desc.vertex_bindings.data();
+  vi.vertexAttributeDescriptionCount = uint32_t(desc.vertex_attributes.size());
+  vi.pVertexAttributeDescriptions = desc.vertex_attributes.data();
+  auto ia = init<VkPipelineInputAssemblyStateCreateInfo>(VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO);
+  ia.topology = desc.topology;
+  auto vp = init<VkPipelineViewportStateCreateInfo>(VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO);
+  vp.viewportCount = 1;
+  vp.scissorCount = 1;
+  auto rs = init<VkPipelineRasterizationStateCreateInfo>(VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO);
+  rs.polygonMode = VK_POLYGON_MODE_FILL;
+  rs.cullMode = desc.cull_mode;
+  rs.frontFace = desc.front_face;
+  rs.lineWidth = 1.0f;
+  auto ms = init<VkPipelineMultisampleStateCreateInfo>(VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO);
+  ms.rasterizationSamples = VK_SAMPLE_COUNT_1_BIT;
+  auto ds = init<VkPipelineDepthStencilStateCreateInfo>(VK_STRUCTURE_TYPE_PIPELINE_DEPTH_STENCIL_STATE_CREATE_INFO);
+  const bool depth = desc.depth_format != VK_FORMAT_UNDEFINED;
+  ds.depthTestEnable = depth ? VK_TRUE : VK_FALSE;
+  ds.depthWriteEnable = depth && desc.depth_write ? VK_TRUE : VK_FALSE;
+  ds.depthCompareOp = desc.depth_compare;
+  std::vector<VkPipelineColorBlendAttachmentState> blend(desc.color_formats.size());
+  for (auto& b : blend) {
+    b.blendEnable = VK_FALSE;
+    b.colorWriteMask =
+        VK_COLOR_COMPONENT_R_BIT | VK_COLOR_COMPONENT_G_BIT | VK_COLOR_COMPONENT_B_BIT | VK_COLOR_COMPONENT_A_BIT;
+  }
+  auto cb = init<VkPipelineColorBlendStateCreateInfo>(VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO);
+  cb.attachmentCount = uint32_t(blend.size());
+  cb.pAttachments = blend.data();
+  const VkDynamicState dynamic[] = {VK_DYNAMIC_STATE_VIEWPORT, VK_DYNAMIC_STATE_SCISSOR};
+  auto dyn = init<VkPipelineDynamicStateCreateInfo>(VK_STRUCTURE_TYPE_PIPELINE_DYNAMIC_STATE_CREATE_INFO);
+  dyn.dynamicStateCount = 2;
+  dyn.pDynamicStates = dynamic;
+  auto rendering = init<VkPipelineRenderingCreateInfo>(VK_STRUCTURE_TYPE_PIPELINE_RENDERING_CREATE_INFO);
+  rendering.colorAttachmentCount = uint32_t(desc.color_formats.size());
+  rendering.pColorAttachmentFormats = desc.color_formats.data();
+  rendering.depthAttachmentFormat = desc.depth_format;
+
+  auto gpci = init<VkGraphicsPipelineCreateInfo>(VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO);
+  gpci.pNext = &rendering;
+  gpci.stageCount = 2;
+  gpci.pStages = stages;
+  gpci.pVertexInputState = &vi;
+  gpci.pInputAssemblyState = &ia;
+  gpci.pViewportState = &vp;
+  gpci.pRasterizationState = &rs;
+  gpci.pMultisampleState = &ms;
+  gpci.pDepthStencilState = &ds;
+  gpci.pColorBlendState = &cb;
+  gpci.pDynamicState = &dyn;
+  gpci.layout = p.layout_;
+  const VkResult r = vkCreateGraphicsPipelines(device_, VK_NULL_HANDLE, 1, &gpci, nullptr, &p.pipeline_);
+  vkDestroyShaderModule(device_, vs, nullptr);
+  vkDestroyShaderModule(device_, fs, nullptr);
+  TVT_VK_CHECK(r);
+  return p;
 }
 
 void DescriptorSet::write_buffer(uint32_t binding, VkDescriptorType type, const Buffer& buffer) {
@@ -816,6 +930,43 @@ void ComputePipeline::reset() {
   layout_ = VK_NULL_HANDLE;
   set_layout_ = VK_NULL_HANDLE;
   bindings_.clear();
+}
+
+GraphicsPipeline::GraphicsPipeline(GraphicsPipeline&& o) noexcept
+    : device_(std::exchange(o.device_, VK_NULL_HANDLE)),
+      pipeline_(std::exchange(o.pipeline_, VK_NULL_HANDLE)),
+      layout_(std::exchange(o.layout_, VK_NULL_HANDLE)),
+      set_layout_(std::exchange(o.set_layout_, VK_NULL_HANDLE)),
+      push_stages_(std::exchange(o.push_stages_, 0)),
+      types_(std::exchange(o.types_, {})) {}
+
+GraphicsPipeline& GraphicsPipeline::operator=(GraphicsPipeline&& o) noexcept {
+  if (this != &o) {
+    reset();
+    device_ = std::exchange(o.device_, VK_NULL_HANDLE);
+    pipeline_ = std::exchange(o.pipeline_, VK_NULL_HANDLE);
+    layout_ = std::exchange(o.layout_, VK_NULL_HANDLE);
+    set_layout_ = std::exchange(o.set_layout_, VK_NULL_HANDLE);
+    push_stages_ = std::exchange(o.push_stages_, 0);
+    types_ = std::exchange(o.types_, {});
+  }
+  return *this;
+}
+
+GraphicsPipeline::~GraphicsPipeline() { reset(); }
+
+void GraphicsPipeline::reset() {
+  if (device_) {
+    if (pipeline_) vkDestroyPipeline(device_, pipeline_, nullptr);
+    if (layout_) vkDestroyPipelineLayout(device_, layout_, nullptr);
+    if (set_layout_) vkDestroyDescriptorSetLayout(device_, set_layout_, nullptr);
+  }
+  device_ = VK_NULL_HANDLE;
+  pipeline_ = VK_NULL_HANDLE;
+  layout_ = VK_NULL_HANDLE;
+  set_layout_ = VK_NULL_HANDLE;
+  push_stages_ = 0;
+  types_.clear();
 }
 
 DescriptorSet::DescriptorSet(DescriptorSet&& o) noexcept

@@ -8,7 +8,7 @@
 // VK_LAYER_KHRONOS_validation with a debug-utils messenger that counts and records every
 // warning and error message; tests fail when validation_messages() is non-empty.
 //
-// Lifetime: every Buffer, Image, ComputePipeline and DescriptorSet holds the context's
+// Lifetime: every Buffer, Image, ComputePipeline, GraphicsPipeline and DescriptorSet holds the context's
 // VkDevice and must be destroyed (or moved from) before its Context is destroyed.
 // Thread-safety: create_* and validation_messages()/clear_validation_messages() may be
 // called from any thread; run_commands(), upload() and wait_idle() use the queue and the
@@ -125,6 +125,57 @@ class ComputePipeline {
   void reset();
 };
 
+// A graphics pipeline for dynamic rendering (Vulkan 1.3 core): vertex + fragment stages, its
+// own descriptor-set layout (set 0) and an optional push-constant range. Viewport and scissor
+// are dynamic state (RenderTarget::begin sets them to the whole target).
+struct GraphicsBinding {
+  uint32_t binding;
+  VkDescriptorType type;
+  VkShaderStageFlags stages;
+};
+
+struct GraphicsPipelineDesc {
+  std::span<const uint32_t> vertex_spirv;
+  std::span<const uint32_t> fragment_spirv;
+  std::vector<VkVertexInputBindingDescription> vertex_bindings;
+  std::vector<VkVertexInputAttributeDescription> vertex_attributes;
+  std::vector<GraphicsBinding> bindings;            // descriptor set 0
+  uint32_t push_constant_bytes = 0;                 // multiple of 4; 0: none
+  VkShaderStageFlags push_constant_stages = VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT;
+  std::vector<VkFormat> color_formats;              // one per colour attachment, in location order
+  VkFormat depth_format = VK_FORMAT_UNDEFINED;      // UNDEFINED: no depth attachment
+  VkCompareOp depth_compare = VK_COMPARE_OP_GREATER_OR_EQUAL;  // reverse-Z by default
+  bool depth_write = true;
+  VkPrimitiveTopology topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST;
+  VkCullModeFlags cull_mode = VK_CULL_MODE_BACK_BIT;
+  VkFrontFace front_face = VK_FRONT_FACE_COUNTER_CLOCKWISE;  // in framebuffer coordinates (y down)
+};
+
+class GraphicsPipeline {
+ public:
+  GraphicsPipeline() = default;
+  GraphicsPipeline(GraphicsPipeline&&) noexcept;
+  GraphicsPipeline& operator=(GraphicsPipeline&&) noexcept;
+  GraphicsPipeline(const GraphicsPipeline&) = delete;
+  GraphicsPipeline& operator=(const GraphicsPipeline&) = delete;
+  ~GraphicsPipeline();
+
+  VkPipeline handle() const { return pipeline_; }
+  VkPipelineLayout layout() const { return layout_; }
+  VkDescriptorSetLayout set_layout() const { return set_layout_; }
+  VkShaderStageFlags push_constant_stages() const { return push_stages_; }
+
+ private:
+  friend class Context;
+  VkDevice device_ = VK_NULL_HANDLE;
+  VkPipeline pipeline_ = VK_NULL_HANDLE;
+  VkPipelineLayout layout_ = VK_NULL_HANDLE;
+  VkDescriptorSetLayout set_layout_ = VK_NULL_HANDLE;
+  VkShaderStageFlags push_stages_ = 0;
+  std::vector<VkDescriptorType> types_;  // sizes the pool of each DescriptorSet
+  void reset();
+};
+
 // One descriptor set from a pool owned by the set itself; write_*() binds resources. Writes
 // must not happen while a submitted command buffer that uses the set is still pending.
 class DescriptorSet {
@@ -198,6 +249,9 @@ class Context {
   ComputePipeline create_compute_pipeline(std::span<const uint32_t> spirv, std::span<const ComputeBinding> bindings,
                                           uint32_t push_constant_bytes = 0);
   DescriptorSet allocate_descriptor_set(const ComputePipeline& pipeline);
+  // Fatal when the device lacks dynamicRendering (Vulkan 1.3 core, always on for 1.3 devices).
+  GraphicsPipeline create_graphics_pipeline(const GraphicsPipelineDesc& desc);
+  DescriptorSet allocate_descriptor_set(const GraphicsPipeline& pipeline);
 
   // Records with `record` into a one-time command buffer, submits, waits for completion.
   // For set-up, uploads and tests; frame loops use their own command buffers and fences.
@@ -214,6 +268,8 @@ class Context {
 
  private:
   Context() = default;
+  DescriptorSet allocate_set(VkDescriptorSetLayout layout, std::span<const VkDescriptorType> types);
+  VkShaderModule create_shader_module(std::span<const uint32_t> spirv);
   VkInstance instance_ = VK_NULL_HANDLE;
   VkDebugUtilsMessengerEXT messenger_ = VK_NULL_HANDLE;
   VkPhysicalDevice physical_ = VK_NULL_HANDLE;

@@ -14,6 +14,7 @@ using std::int64_t;
 using std::uint64_t;
 using vec2 = glm::vec2;
 using vec4 = glm::vec4;
+using mat4 = glm::mat4;
 using ivec2 = glm::ivec2;
 using ivec4 = glm::ivec4;
 using uvec2 = glm::uvec2;

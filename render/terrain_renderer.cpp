@@ -1,0 +1,170 @@
+// Terrain raster pass (see terrain_renderer.h, docs/renderer.md).
+#include "render/terrain_renderer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include <embedded_shaders.h>
+
+namespace tvt {
+
+namespace {
+
+template <class T>
+vk::Buffer upload_vector(vk::Context& ctx, const std::vector<T>& v, VkBufferUsageFlags usage) {
+  const VkDeviceSize bytes = VkDeviceSize(v.size() * sizeof(T));
+  vk::Buffer b = ctx.create_buffer(bytes, usage | VK_BUFFER_USAGE_TRANSFER_DST_BIT, false);
+  ctx.upload(b, v.data(), bytes);
+  return b;
+}
+
+glm::vec4 v4(const glm::dvec3& v, double w) { return glm::vec4(glm::dvec4(v, w)); }
+
+}  // namespace
+
+Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& context, const SceneAssets& assets,
+                                                                 const TerrainRendererOptions& options) {
+  return create(context, assets.heightfield, assets.desc.terrain, assets.desc.vt, options);
+}
+
+Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& context, const ImageF& heightfield,
+                                                                 const TerrainDesc& terrain, const VtConfig& vt,
+                                                                 const TerrainRendererOptions& options) {
+  if (options.width == 0 || options.height == 0 || options.width > 16384 || options.height > 16384)
+    return make_error("terrain renderer: width and height must be 1 ... 16384 pixels");
+  if (!context.features().dynamic_rendering)
+    return make_error("terrain renderer: device " + context.device_name() + " lacks dynamicRendering (Vulkan 1.3)");
+  auto mesh = TerrainMesh::create(heightfield, terrain.extent_m, terrain.height_m, vt, options.mesh);
+  if (!mesh) return mesh.error();
+
+  std::unique_ptr<TerrainRenderer> r(new TerrainRenderer());
+  r->context_ = &context;
+  r->options_ = options;
+  r->mesh_ = std::move(mesh).value();
+  r->fog_density_ = options.lighting.fog_density_per_m < 0.0 ? 1.5 / terrain.extent_m : options.lighting.fog_density_per_m;
+
+  r->vertex_buffer_ = upload_vector(context, r->mesh_.vertices(), VK_BUFFER_USAGE_VERTEX_BUFFER_BIT);
+  r->index_buffer_ = upload_vector(context, r->mesh_.indices(), VK_BUFFER_USAGE_INDEX_BUFFER_BIT);
+  r->height_buffer_ = upload_vector(context, r->mesh_.heightfield().data, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+  r->frame_buffer_ = context.create_buffer(sizeof(gpu::TvtTerrainFrame),
+                                           VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT, false);
+
+  vk::RenderTargetDesc td;
+  td.width = options.width;
+  td.height = options.height;
+  td.color_formats = {VK_FORMAT_R8G8B8A8_UNORM};
+  if (options.texel_output) td.color_formats.push_back(VK_FORMAT_R32G32B32A32_UINT);
+  td.depth = true;
+  r->target_ = vk::RenderTarget(context, td);
+
+  vk::GraphicsPipelineDesc pd;
+  pd.vertex_spirv = shaders::terrain_vert();
+  pd.fragment_spirv = options.texel_output ? shaders::terrain_texel_frag() : shaders::terrain_frag();
+  pd.vertex_bindings = {{0, sizeof(TerrainVertex), VK_VERTEX_INPUT_RATE_VERTEX}};
+  pd.vertex_attributes = {{gpu::TVT_TERRAIN_ATTR_GRID, 0, VK_FORMAT_R16G16B16A16_UINT, 0}};
+  pd.bindings = {
+      {gpu::TVT_BIND_TERRAIN_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER,
+       VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT},
+      {gpu::TVT_BIND_TERRAIN_HEIGHTS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, VK_SHADER_STAGE_VERTEX_BIT},
+  };
+  pd.push_constant_bytes = sizeof(gpu::TvtTerrainDraw);
+  pd.push_constant_stages = VK_SHADER_STAGE_VERTEX_BIT;
+  pd.color_formats = td.color_formats;
+  pd.depth_format = vk::RenderTarget::kDepthFormat;
+  pd.depth_compare = VK_COMPARE_OP_GREATER_OR_EQUAL;  // reverse-Z
+  pd.cull_mode = options.cull_back_faces ? VK_CULL_MODE_BACK_BIT : VK_CULL_MODE_NONE;
+  // Triangles are counter-clockwise seen from above (and skirts seen from outside). The
+  // projection flips y, and Vulkan's orientation rule (spec "Basic Polygon Rasterization":
+  // a = -1/2 sum x_i y_{i+1} - x_{i+1} y_i in framebuffer coordinates) carries its own minus
+  // sign, so they stay COUNTER_CLOCKWISE.
+  pd.front_face = VK_FRONT_FACE_COUNTER_CLOCKWISE;
+  r->pipeline_ = context.create_graphics_pipeline(pd);
+  r->descriptors_ = context.allocate_descriptor_set(r->pipeline_);
+  r->descriptors_.write_buffer(gpu::TVT_BIND_TERRAIN_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, r->frame_buffer_);
+  r->descriptors_.write_buffer(gpu::TVT_BIND_TERRAIN_HEIGHTS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, r->height_buffer_);
+  return r;
+}
+
+gpu::TvtTerrainFrame TerrainRenderer::frame_constants(const Camera& camera) const {
+  const TerrainLighting& l = options_.lighting;
+  const double mpt = mesh_.metres_per_texel();
+  // Anchor: the camera's level-0 texel, from double precision; everything on the GPU is
+  // relative to it (integers) or to the camera (small floats).
+  const double cx = camera.position_m.x / mpt, cy = camera.position_m.y / mpt;
+  gpu::TvtTerrainFrame f{};
+  f.clip_from_relative = glm::mat4(camera.clip_from_relative(aspect()));
+  f.sun = v4(glm::normalize(l.sun_direction), l.sun_intensity);
+  f.sun_color = v4(l.sun_color, l.ambient);
+  f.sky = v4(l.sky_color, fog_density_);
+  f.albedo_override = l.albedo_override ? v4(*l.albedo_override, 1.0) : glm::vec4(0.0f);
+  // Clamped to [-V/2, 3V/2] so every anchor-relative texel fits int32 (|.| <= 3V/2 < 2^31 for
+  // V <= 2^30); a camera farther out only loses sub-texel precision on a far-away terrain.
+  const double v = double(mesh_.vt_texels());
+  f.anchor_x = int64_t(std::floor(std::clamp(cx, -0.5 * v, 1.5 * v)));
+  f.anchor_y = int64_t(std::floor(std::clamp(cy, -0.5 * v, 1.5 * v)));
+  f.camera = glm::vec4(float(cx - double(f.anchor_x)), float(cy - double(f.anchor_y)), float(camera.position_m.z),
+                       float(mpt));
+  const ImageF& hf = mesh_.heightfield();
+  f.terrain = glm::vec4(float(mesh_.height_m()), float(mesh_.extent_m() / hf.width),
+                        float(mesh_.extent_m() / hf.height), 0.0f);
+  f.hf = glm::uvec4(uint32_t(hf.width), uint32_t(hf.height), mesh_.log2_vt(), 0u);
+  return f;
+}
+
+void TerrainRenderer::record(VkCommandBuffer cmd, const Camera& camera) {
+  const gpu::TvtTerrainFrame frame = frame_constants(camera);
+  // Earlier frames' shader reads of the frame buffer finish before it is overwritten (WAR:
+  // an execution dependency is enough).
+  vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_VERTEX_SHADER_BIT | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT,
+                       VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 0, nullptr, 0, nullptr, 0, nullptr);
+  vkCmdUpdateBuffer(cmd, frame_buffer_.handle(), 0, sizeof(frame), &frame);
+  VkMemoryBarrier mb{};
+  mb.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
+  mb.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+  mb.dstAccessMask = VK_ACCESS_UNIFORM_READ_BIT;
+  vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                       VK_PIPELINE_STAGE_VERTEX_SHADER_BIT | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, 0, 1, &mb, 0,
+                       nullptr, 0, nullptr);
+
+  const glm::dvec3& sky = options_.lighting.sky_color;
+  std::vector<VkClearColorValue> clears(2);
+  clears[0].float32[0] = float(sky.r);
+  clears[0].float32[1] = float(sky.g);
+  clears[0].float32[2] = float(sky.b);
+  clears[0].float32[3] = 1.0f;
+  for (uint32_t& c : clears[1].uint32) c = kNoTexel;
+  target_.begin(cmd, clears, 0.0f);
+
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline_.handle());
+  const VkDescriptorSet set = descriptors_.handle();
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline_.layout(), 0, 1, &set, 0, nullptr);
+  const VkDeviceSize offset = 0;
+  const VkBuffer vb = vertex_buffer_.handle();
+  vkCmdBindVertexBuffers(cmd, 0, 1, &vb, &offset);
+  vkCmdBindIndexBuffer(cmd, index_buffer_.handle(), 0, VK_INDEX_TYPE_UINT32);
+
+  stats_ = {};
+  const std::vector<ChunkDraw> draws = mesh_.select(camera, aspect(), &stats_.chunks);
+  for (const ChunkDraw& d : draws) {
+    gpu::TvtTerrainDraw push{};
+    const int64_t rx = d.origin_x - frame.anchor_x, ry = d.origin_y - frame.anchor_y;  // |.| <= 3V/2
+    TVT_CHECK(rx > INT32_MIN && rx < INT32_MAX && ry > INT32_MIN && ry < INT32_MAX);
+    push.rel_texel = glm::ivec2(int32_t(rx), int32_t(ry));
+    push.quad_texels = mesh_.quad_texels();
+    push.skirt_depth_m = float(d.skirt_depth_m);
+    vkCmdPushConstants(cmd, pipeline_.layout(), VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(push), &push);
+    const LodRange& lod = mesh_.lod(d.lod);
+    vkCmdDrawIndexed(cmd, lod.index_count, 1, lod.first_index, 0, 0);
+    stats_.triangles += lod.index_count / 3;
+  }
+  target_.end(cmd);
+}
+
+ImageRGBA8 TerrainRenderer::render(const Camera& camera) {
+  context_->run_commands([&](VkCommandBuffer cmd) { record(cmd, camera); });
+  return target_.read_rgba8(0);
+}
+
+}  // namespace tvt

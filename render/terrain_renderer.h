@@ -1,0 +1,89 @@
+// Terrain raster pass: draws the chunked heightfield (TerrainMesh) for a Camera into its own
+// RenderTarget with sun + ambient lighting and distance fog toward the sky colour; the sky is
+// the clear colour. Planned once from TerrainRendererOptions, then record(cmd, camera)
+// (STYLE #9). See docs/renderer.md for coordinates, precision, LOD and cracks.
+//
+// Not thread-safe. record() updates the frame uniform buffer inside the command buffer
+// (vkCmdUpdateBuffer), so several recorded frames may be in flight as long as they are
+// executed in submission order on one queue.
+#pragma once
+#include <cstdint>
+#include <memory>
+#include <optional>
+
+#include <glm/glm.hpp>
+
+#include "compose/scene_assets.h"
+#include "render/camera.h"
+#include "render/render_target.h"
+#include "render/terrain_mesh.h"
+#include "render/vk_context.h"
+#include "shared/terrain_types.h"
+
+namespace tvt {
+
+struct TerrainLighting {
+  glm::dvec3 sun_direction{0.45, 0.30, 0.84};  // toward the sun, world (normalised on use)
+  double sun_intensity = 1.0;
+  glm::dvec3 sun_color{1.0, 0.95, 0.86};       // linear
+  double ambient = 0.28;
+  glm::dvec3 sky_color{0.56, 0.70, 0.88};      // linear; also the fog colour and clear colour
+  double fog_density_per_m = -1.0;             // < 0: 1.5 / extent_m; 0: no fog
+  std::optional<glm::dvec3> albedo_override;   // set: constant albedo instead of terrain_albedo()
+};
+
+struct TerrainRendererOptions {
+  uint32_t width = 1280;   // pixels
+  uint32_t height = 720;
+  TerrainMeshOptions mesh;
+  TerrainLighting lighting;
+  bool cull_back_faces = true;
+  // Adds colour attachment 1 (R32G32B32A32_UINT): per pixel the level-0 VT texel coordinate
+  // as floor (x, y: low 32 bits) and fraction (z, w: float bits); sky pixels keep
+  // kNoTexel in every channel. For precision tests and debugging.
+  bool texel_output = false;
+};
+
+struct TerrainFrameStats {
+  ChunkSelectStats chunks;
+  uint64_t triangles = 0;
+};
+
+class TerrainRenderer {
+ public:
+  static constexpr uint32_t kNoTexel = 0xffffffffu;
+
+  static Result<std::unique_ptr<TerrainRenderer>> create(vk::Context& context, const ImageF& heightfield,
+                                                         const TerrainDesc& terrain, const VtConfig& vt,
+                                                         const TerrainRendererOptions& options = {});
+  static Result<std::unique_ptr<TerrainRenderer>> create(vk::Context& context, const SceneAssets& assets,
+                                                         const TerrainRendererOptions& options = {});
+
+  // Records the whole pass into the render target (begin, draws, end): the colour attachments
+  // end in TRANSFER_SRC_OPTIMAL. Chunk selection (culling, LOD) runs on the CPU here.
+  void record(VkCommandBuffer cmd, const Camera& camera);
+  // Blocking convenience: record + submit + wait + read back attachment 0.
+  ImageRGBA8 render(const Camera& camera);
+
+  double aspect() const { return double(options_.width) / double(options_.height); }
+  const TerrainMesh& mesh() const { return mesh_; }
+  const vk::RenderTarget& target() const { return target_; }
+  const TerrainFrameStats& last_stats() const { return stats_; }
+  const TerrainRendererOptions& options() const { return options_; }
+  // The frame constants record() would use for `camera` (exposed for tests).
+  gpu::TvtTerrainFrame frame_constants(const Camera& camera) const;
+
+ private:
+  TerrainRenderer() = default;
+  vk::Context* context_ = nullptr;
+  TerrainRendererOptions options_;
+  TerrainMesh mesh_;
+  double fog_density_ = 0.0;
+  vk::Buffer vertex_buffer_, index_buffer_, height_buffer_, frame_buffer_;
+  vk::GraphicsPipeline pipeline_;
+  vk::DescriptorSet descriptors_;
+  vk::RenderTarget target_;
+  TerrainFrameStats stats_;
+};
+
+}  // namespace tvt

@@ -1,0 +1,72 @@
+// Terrain fragment stage, included by terrain.frag and terrain_texel.frag (the latter defines
+// TVT_TERRAIN_TEXEL_OUTPUT and writes the VT texel coordinate to a second attachment).
+//
+// Albedo comes from terrain_albedo(TerrainFragment): the single place where virtual-texture
+// sampling plugs in. Everything it may need is in TerrainFragment; the level-0 VT texel
+// coordinate is anchor_texel + local_texel with anchor_texel an exact int64 pair and
+// local_texel a small float (camera-relative), never a whole-terrain float UV (DESIGN §3).
+#extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
+
+#include "shared/terrain_types.h"
+
+layout(std140, set = 0, binding = TVT_BIND_TERRAIN_FRAME) uniform FrameBuf { TvtTerrainFrame F; };
+
+layout(location = 0) in vec2 v_local_texel;
+layout(location = 1) in vec3 v_normal;
+layout(location = 2) in vec3 v_rel_m;
+layout(location = 3) in float v_height01;
+
+layout(location = 0) out vec4 out_color;
+#ifdef TVT_TERRAIN_TEXEL_OUTPUT
+layout(location = 1) out uvec4 out_texel;  // x, y: floor of the texel coordinate (low 32 bits); z, w: fraction bits
+#endif
+
+struct TerrainFragment {
+  i64vec2 anchor_texel;  // level-0 VT texel of the camera (exact integers)
+  vec2 local_texel;      // level-0 texel coordinate minus anchor_texel (error ~ |local| * 2^-23)
+  vec2 dtexel_dx;        // screen-space derivatives of the texel coordinate (level-0 texels per pixel)
+  vec2 dtexel_dy;
+  vec3 normal;           // world, unit
+  float height01;        // heightfield value in [0,1]
+  vec3 rel_m;            // position minus camera, metres
+  float distance_m;      // length(rel_m)
+};
+
+// Placeholder albedo until VT sampling lands: a height/slope colour ramp (linear RGB).
+vec4 terrain_albedo(TerrainFragment f) {
+  const vec3 sand = vec3(0.62, 0.55, 0.38), grass = vec3(0.20, 0.36, 0.12);
+  const vec3 rock = vec3(0.38, 0.35, 0.33), snow = vec3(0.92, 0.93, 0.95);
+  const float slope = 1.0 - f.normal.z;  // 0 flat, 1 vertical
+  vec3 c = mix(sand, grass, smoothstep(0.18, 0.28, f.height01));
+  c = mix(c, rock, smoothstep(0.55, 0.70, f.height01));
+  c = mix(c, rock, smoothstep(0.12, 0.25, slope));
+  c = mix(c, snow, smoothstep(0.78, 0.86, f.height01) * (1.0 - smoothstep(0.20, 0.35, slope)));
+  return vec4(c, 1.0);
+}
+
+void main() {
+  TerrainFragment f;
+  f.anchor_texel = i64vec2(F.anchor_x, F.anchor_y);
+  f.local_texel = v_local_texel;
+  f.dtexel_dx = dFdx(v_local_texel);
+  f.dtexel_dy = dFdy(v_local_texel);
+  f.normal = normalize(v_normal);
+  f.height01 = v_height01;
+  f.rel_m = v_rel_m;
+  f.distance_m = length(v_rel_m);
+
+  const vec4 albedo = F.albedo_override.a > 0.0 ? F.albedo_override : terrain_albedo(f);
+  const float lambert = max(dot(f.normal, F.sun.xyz), 0.0);
+  const vec3 lit = albedo.rgb * (F.sun_color.rgb * (F.sun.w * lambert) + vec3(F.sun_color.a));
+  const float fog = 1.0 - exp(-F.sky.a * f.distance_m);
+  vec3 c = mix(lit, F.sky.rgb, fog);
+  // A non-finite colour must never pass silently: paint it magenta (tests look for it).
+  if (any(isnan(c)) || any(isinf(c))) c = vec3(1.0, 0.0, 1.0);
+  out_color = vec4(c, 1.0);
+#ifdef TVT_TERRAIN_TEXEL_OUTPUT
+  const vec2 whole = floor(v_local_texel);
+  const i64vec2 t = f.anchor_texel + i64vec2(whole);
+  out_texel = uvec4(uint(t.x), uint(t.y), floatBitsToUint(v_local_texel - whole));
+#endif
+}
