@@ -61,7 +61,10 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
 
   vk::GraphicsPipelineDesc pd;
   pd.vertex_spirv = shaders::terrain_vert();
-  pd.fragment_spirv = options.texel_output ? shaders::terrain_texel_frag() : shaders::terrain_frag();
+  if (options.vt && options.texel_output)
+    return make_error("terrain renderer: texel_output and vt cannot be combined");
+  pd.fragment_spirv = options.vt ? shaders::terrain_vt_frag()
+                                 : (options.texel_output ? shaders::terrain_texel_frag() : shaders::terrain_frag());
   pd.vertex_bindings = {{0, sizeof(TerrainVertex), VK_VERTEX_INPUT_RATE_VERTEX}};
   pd.vertex_attributes = {{gpu::TVT_TERRAIN_ATTR_GRID, 0, VK_FORMAT_R16G16B16A16_UINT, 0}};
   pd.bindings = {
@@ -69,6 +72,26 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
        VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT},
       {gpu::TVT_BIND_TERRAIN_HEIGHTS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, VK_SHADER_STAGE_VERTEX_BIT},
   };
+  if (options.vt) {
+    const TerrainVtInputs& v = *options.vt;
+    if (!v.info || !v.entries || !v.cache || v.sampler == VK_NULL_HANDLE || v.feedback_divisor < 1 || v.feedback_divisor > 64)
+      return make_error("terrain renderer: vt inputs incomplete or feedback_divisor outside 1..64");
+    const VkShaderStageFlags fs = VK_SHADER_STAGE_FRAGMENT_BIT;
+    pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_VT_INFO, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, fs});
+    pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_VT_ENTRIES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, fs});
+    pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_VT_CACHE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, fs});
+    pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_FEEDBACK, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, fs});
+    pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_FEEDBACK_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, fs});
+    r->feedback_.divisor = v.feedback_divisor;
+    r->feedback_.width = (options.width + v.feedback_divisor - 1) / v.feedback_divisor;
+    r->feedback_.height = (options.height + v.feedback_divisor - 1) / v.feedback_divisor;
+    r->feedback_buffer_ = context.create_buffer(VkDeviceSize(r->feedback_.width) * r->feedback_.height * 8,
+                                                VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT |
+                                                    VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+                                                false);
+    r->feedback_params_buffer_ = context.create_buffer(
+        sizeof(gpu::TvtFeedbackWrite), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT, false);
+  }
   pd.push_constant_bytes = sizeof(gpu::TvtTerrainDraw);
   pd.push_constant_stages = VK_SHADER_STAGE_VERTEX_BIT;
   pd.color_formats = td.color_formats;
@@ -84,6 +107,15 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
   r->descriptors_ = context.allocate_descriptor_set(r->pipeline_);
   r->descriptors_.write_buffer(gpu::TVT_BIND_TERRAIN_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, r->frame_buffer_);
   r->descriptors_.write_buffer(gpu::TVT_BIND_TERRAIN_HEIGHTS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, r->height_buffer_);
+  if (options.vt) {
+    const TerrainVtInputs& v = *options.vt;
+    r->descriptors_.write_buffer(gpu::TVT_BIND_TERRAIN_VT_INFO, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, *v.info);
+    r->descriptors_.write_buffer(gpu::TVT_BIND_TERRAIN_VT_ENTRIES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, *v.entries);
+    r->descriptors_.write_sampled_image(gpu::TVT_BIND_TERRAIN_VT_CACHE, *v.cache, v.sampler, VK_IMAGE_LAYOUT_GENERAL);
+    r->descriptors_.write_buffer(gpu::TVT_BIND_TERRAIN_FEEDBACK, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, r->feedback_buffer_);
+    r->descriptors_.write_buffer(gpu::TVT_BIND_TERRAIN_FEEDBACK_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER,
+                                 r->feedback_params_buffer_);
+  }
   return r;
 }
 
@@ -117,13 +149,25 @@ void TerrainRenderer::record(VkCommandBuffer cmd, const Camera& camera) {
   const gpu::TvtTerrainFrame frame = frame_constants(camera);
   // Earlier frames' shader reads of the frame buffer finish before it is overwritten (WAR:
   // an execution dependency is enough).
-  vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_VERTEX_SHADER_BIT | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT,
+  // (The compute stage: the feedback compactor of an earlier frame reads the feedback buffer.)
+  vkCmdPipelineBarrier(cmd,
+                       VK_PIPELINE_STAGE_VERTEX_SHADER_BIT | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT |
+                           VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
                        VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 0, nullptr, 0, nullptr, 0, nullptr);
   vkCmdUpdateBuffer(cmd, frame_buffer_.handle(), 0, sizeof(frame), &frame);
+  if (options_.vt) {
+    // Feedback: all texels empty, then this frame's rotating pixel of every N x N block.
+    const uint32_t n = feedback_.divisor, i = uint32_t(frames_recorded_ % (uint64_t(n) * n));
+    feedback_.offset_x = (i * 7u) % n;  // a scrambled walk over the block
+    feedback_.offset_y = (i / n + i * 3u) % n;
+    vkCmdUpdateBuffer(cmd, feedback_params_buffer_.handle(), 0, sizeof(feedback_), &feedback_);
+    vkCmdFillBuffer(cmd, feedback_buffer_.handle(), 0, VK_WHOLE_SIZE, 0xffffffffu);
+  }
+  ++frames_recorded_;
   VkMemoryBarrier mb{};
   mb.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
   mb.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-  mb.dstAccessMask = VK_ACCESS_UNIFORM_READ_BIT;
+  mb.dstAccessMask = VK_ACCESS_UNIFORM_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
   vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT,
                        VK_PIPELINE_STAGE_VERTEX_SHADER_BIT | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, 0, 1, &mb, 0,
                        nullptr, 0, nullptr);
@@ -160,6 +204,16 @@ void TerrainRenderer::record(VkCommandBuffer cmd, const Camera& camera) {
     stats_.triangles += lod.index_count / 3;
   }
   target_.end(cmd);
+  if (options_.vt) {
+    // Feedback texels written by fragments are read by the compactor's compute passes.
+    VkMemoryBarrier fb{};
+    fb.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
+    fb.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
+    fb.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_TRANSFER_READ_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT,
+                         VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &fb, 0, nullptr, 0,
+                         nullptr);
+  }
 }
 
 ImageRGBA8 TerrainRenderer::render(const Camera& camera) {

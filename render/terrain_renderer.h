@@ -32,6 +32,16 @@ struct TerrainLighting {
   std::optional<glm::dvec3> albedo_override;   // set: constant albedo instead of terrain_albedo()
 };
 
+// Virtual-texture mode: albedo comes from the VT (terrain_vt.frag) and the pass writes
+// feedback. The objects must outlive the renderer (render/vt_system.h owns them).
+struct TerrainVtInputs {
+  const vk::Buffer* info = nullptr;     // TvtVtInfo
+  const vk::Buffer* entries = nullptr;  // page table
+  const vk::Image* cache = nullptr;     // physical cache (layout GENERAL)
+  VkSampler sampler = VK_NULL_HANDLE;
+  uint32_t feedback_divisor = 8;        // N: one feedback texel per N x N pixels
+};
+
 struct TerrainRendererOptions {
   uint32_t width = 1280;   // pixels
   uint32_t height = 720;
@@ -42,6 +52,7 @@ struct TerrainRendererOptions {
   // as floor (x, y: low 32 bits) and fraction (z, w: float bits); sky pixels keep
   // kNoTexel in every channel. For precision tests and debugging.
   bool texel_output = false;
+  std::optional<TerrainVtInputs> vt;  // set: sample the virtual texture and write feedback
 };
 
 struct TerrainFrameStats {
@@ -70,6 +81,11 @@ class TerrainRenderer {
   const vk::RenderTarget& target() const { return target_; }
   const TerrainFrameStats& last_stats() const { return stats_; }
   const TerrainRendererOptions& options() const { return options_; }
+  // VT mode: the feedback texels of the last recorded frame (feedback_types.h format, empty
+  // texels all ones), feedback_width() x feedback_height().
+  const vk::Buffer& feedback_buffer() const { return feedback_buffer_; }
+  uint32_t feedback_width() const { return feedback_.width; }
+  uint32_t feedback_height() const { return feedback_.height; }
   // The frame constants record() would use for `camera` (exposed for tests).
   gpu::TvtTerrainFrame frame_constants(const Camera& camera) const;
 
@@ -80,6 +96,9 @@ class TerrainRenderer {
   TerrainMesh mesh_;
   double fog_density_ = 0.0;
   vk::Buffer vertex_buffer_, index_buffer_, height_buffer_, frame_buffer_;
+  vk::Buffer feedback_buffer_, feedback_params_buffer_;
+  gpu::TvtFeedbackWrite feedback_{};
+  uint64_t frames_recorded_ = 0;
   vk::GraphicsPipeline pipeline_;
   vk::DescriptorSet descriptors_;
   vk::RenderTarget target_;

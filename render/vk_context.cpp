@@ -728,6 +728,18 @@ void DescriptorSet::write_storage_image(uint32_t binding, const Image& image) {
   vkUpdateDescriptorSets(device_, 1, &w, 0, nullptr);
 }
 
+void DescriptorSet::write_sampled_image(uint32_t binding, const Image& image, VkSampler sampler, VkImageLayout layout) {
+  TVT_CHECK(set_ != VK_NULL_HANDLE && image.view() != VK_NULL_HANDLE && sampler != VK_NULL_HANDLE);
+  const VkDescriptorImageInfo info{sampler, image.view(), layout};
+  auto w = init<VkWriteDescriptorSet>(VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET);
+  w.dstSet = set_;
+  w.dstBinding = binding;
+  w.descriptorCount = 1;
+  w.descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+  w.pImageInfo = &info;
+  vkUpdateDescriptorSets(device_, 1, &w, 0, nullptr);
+}
+
 // ---------------------------------------------------------------------------------------
 // Commands
 

@@ -191,6 +191,8 @@ class DescriptorSet {
   // type: VK_DESCRIPTOR_TYPE_STORAGE_BUFFER or VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER; whole buffer.
   void write_buffer(uint32_t binding, VkDescriptorType type, const Buffer& buffer);
   void write_storage_image(uint32_t binding, const Image& image);  // layout GENERAL
+  // A combined image sampler over the image's default view, read in `layout`.
+  void write_sampled_image(uint32_t binding, const Image& image, VkSampler sampler, VkImageLayout layout);
 
  private:
   friend class Context;

@@ -33,7 +33,36 @@ struct TerrainFragment {
   float distance_m;      // length(rel_m)
 };
 
-// Placeholder albedo until VT sampling lands: a height/slope colour ramp (linear RGB).
+#ifdef TVT_TERRAIN_VT
+#include "shared/vt_types.h"
+#include "shared/feedback_types.h"
+layout(std430, set = 0, binding = TVT_BIND_TERRAIN_VT_INFO) readonly buffer VtInfoBuf { TvtVtInfo VT; };
+layout(std430, set = 0, binding = TVT_BIND_TERRAIN_VT_ENTRIES) readonly buffer VtEntryBuf { uint pt_entries[]; };
+layout(set = 0, binding = TVT_BIND_TERRAIN_VT_CACHE) uniform sampler2DArray vt_cache;
+layout(std430, set = 0, binding = TVT_BIND_TERRAIN_FEEDBACK) writeonly buffer FeedbackBuf { uvec2 feedback[]; };
+layout(std140, set = 0, binding = TVT_BIND_TERRAIN_FEEDBACK_PARAMS) uniform FeedbackParams { TvtFeedbackWrite FB; };
+#include "vt_sample.glsl"
+
+// Albedo through the virtual texture; one rotating pixel per N x N block also reports the
+// page its LOD wants (before any fallback to a resident ancestor).
+vec4 terrain_albedo(TerrainFragment f) {
+  const vec2 whole = floor(f.local_texel);
+  const i64vec2 ti = f.anchor_texel + i64vec2(whole);
+  const vec2 tf = f.local_texel - whole;
+  const float lod = vt_lod(f.dtexel_dx, f.dtexel_dy);
+  const uvec2 px = uvec2(gl_FragCoord.xy);
+  if (px.x % FB.divisor == FB.offset_x && px.y % FB.divisor == FB.offset_y) {
+    const int m = clamp(int(floor(lod)), 0, VT.mip_count - 1);
+    const i64vec2 clamped = clamp(ti, i64vec2(0), i64vec2((int64_t(1) << VT.log2_vt) - 1));
+    const uvec2 page = uvec2(clamped >> int64_t(VT.log2_page + m));
+    const uvec2 fb = px / FB.divisor;
+    if (fb.x < FB.width && fb.y < FB.height)
+      feedback[fb.y * FB.width + fb.x] = uvec2(tvt_feedback_word0(uint(m), page.x), tvt_feedback_word1(page.y));
+  }
+  return vec4(vt_sample(ti, tf, lod).rgb, 1.0);
+}
+#else
+// Without a virtual texture (tests of the raster pass): a height/slope colour ramp (linear RGB).
 vec4 terrain_albedo(TerrainFragment f) {
   const vec3 sand = vec3(0.62, 0.55, 0.38), grass = vec3(0.20, 0.36, 0.12);
   const vec3 rock = vec3(0.38, 0.35, 0.33), snow = vec3(0.92, 0.93, 0.95);
@@ -44,6 +73,7 @@ vec4 terrain_albedo(TerrainFragment f) {
   c = mix(c, snow, smoothstep(0.78, 0.86, f.height01) * (1.0 - smoothstep(0.20, 0.35, slope)));
   return vec4(c, 1.0);
 }
+#endif
 
 void main() {
   TerrainFragment f;

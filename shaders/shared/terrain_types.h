@@ -10,6 +10,12 @@ TVT_BEGIN
 
 TVT_CONST uint TVT_BIND_TERRAIN_FRAME = 0u;    // uniform TvtTerrainFrame
 TVT_CONST uint TVT_BIND_TERRAIN_HEIGHTS = 1u;  // storage float[hf_width * hf_height], row-major, in [0,1]
+// Virtual-texture mode (terrain_vt.frag) adds, fragment stage:
+TVT_CONST uint TVT_BIND_TERRAIN_VT_INFO = 2u;          // storage TvtVtInfo
+TVT_CONST uint TVT_BIND_TERRAIN_VT_ENTRIES = 3u;       // storage uint[]: the page table
+TVT_CONST uint TVT_BIND_TERRAIN_VT_CACHE = 4u;         // sampler2DArray: the physical cache
+TVT_CONST uint TVT_BIND_TERRAIN_FEEDBACK = 5u;         // storage uvec2[]: feedback texels (feedback_types.h)
+TVT_CONST uint TVT_BIND_TERRAIN_FEEDBACK_PARAMS = 6u;  // uniform TvtFeedbackWrite
 TVT_CONST uint TVT_TERRAIN_ATTR_GRID = 0u;     // vertex attribute: uvec4 (i, j, skirt, 0), R16G16B16A16_UINT
 TVT_CONST uint TVT_HF_FRAC_BITS = 8u;          // heightfield coordinates in 1/256 heightfield texels
 
@@ -27,6 +33,17 @@ struct TvtTerrainFrame {   // 192 bytes
   uvec4 hf;                // x, y: heightfield width, height; z: log2 V; w: 0
   int64_t anchor_x;        // camera's level-0 VT texel (floor of camera position / metres per texel)
   int64_t anchor_y;
+};
+
+// Where the terrain pass writes feedback: one rotating pixel of every divisor x divisor block
+// writes the page id its LOD wants into feedback texel (x / divisor, y / divisor).
+struct TvtFeedbackWrite {  // 32 bytes (std140)
+  uint width;              // feedback texels per row (ceil(view width / divisor))
+  uint height;
+  uint divisor;            // N
+  uint offset_x;           // the block's pixel that writes this frame, 0 .. N-1
+  uint offset_y;
+  uint pad0, pad1, pad2;
 };
 
 // Per draw (one chunk at one LOD).

@@ -1,0 +1,5 @@
+#version 460
+// Terrain colour pass sampling the virtual texture and writing feedback (terrain_fragment.glsl).
+#extension GL_GOOGLE_include_directive : require
+#define TVT_TERRAIN_VT
+#include "terrain_fragment.glsl"
