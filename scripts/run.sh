@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
-# Sets up, builds and runs the main job on the built-in default scene; output goes to out/.
+# Sets up, builds and runs the main job on the built-in default scene: a headless flythrough
+# through the virtual texture. Frames and per-frame stats go to out/render/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/build.sh
 mkdir -p out
-./build/tools/terravt compose --out out/compose.png "$@"
-echo "wrote out/compose.png"
+./build/tools/terravt render --out out/render "$@"
+echo "frames and stats.jsonl in out/render/"

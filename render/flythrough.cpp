@@ -1,0 +1,93 @@
+#include "render/flythrough.h"
+
+#include <algorithm>
+#include <chrono>
+
+#include "render/feedback_compactor.h"
+#include "render/terrain_renderer.h"
+
+namespace tvt {
+
+namespace {
+double ms_between(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
+  return std::chrono::duration<double, std::milli>(b - a).count();
+}
+}  // namespace
+
+Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& assets, const FlythroughOptions& o,
+                                         const FrameCallback& on_frame) {
+  if (o.frames < 1) return make_error("frames: must be at least 1");
+  if (!(o.fps > 0.0)) return make_error("fps: must be > 0");
+  auto packed = pack_scene(assets, options_for(o.method));
+  if (!packed) return packed.error();
+  auto vt = VtSystem::create(g, packed.value(), o.vt);
+  if (!vt) return vt.error();
+  VtSystem& v = *vt.value();
+  TerrainRendererOptions ro;
+  ro.width = o.width;
+  ro.height = o.height;
+  ro.vt = TerrainVtInputs{&v.info_buffer(), &v.entry_buffer(), &v.cache(), v.sampler(), o.feedback_divisor};
+  auto terrain = TerrainRenderer::create(g, assets, ro);
+  if (!terrain) return terrain.error();
+  TerrainRenderer& t = *terrain.value();
+  FeedbackCompactor::Options fo;
+  fo.feedback_width = t.feedback_width();
+  fo.feedback_height = t.feedback_height();
+  fo.ring_size = 3;
+  auto compactor = FeedbackCompactor::create(g, fo);
+  if (!compactor) return compactor.error();
+
+  const TerrainMesh& mesh = t.mesh();
+  const CameraPath path = CameraPath::default_flythrough(assets.desc.terrain.extent_m, assets.desc.terrain.height_m,
+                                                         [&mesh](double x, double y) { return mesh.height_m_at(x, y); });
+  const double mpt = mesh.metres_per_texel();
+  const double vt_max = double(assets.desc.vt.size_texels() - 1);
+
+  FlythroughSummary sum;
+  const auto start = std::chrono::steady_clock::now();
+  std::vector<PageFeedback> feedback;
+  for (uint32_t f = 0; f < o.frames; ++f) {
+    const auto t0 = std::chrono::steady_clock::now();
+    FlythroughFrame fr;
+    fr.index = f;
+    fr.time_s = path.start_time() + double(f) / o.fps;
+    fr.camera = path.camera_at(std::min(fr.time_s, path.end_time()));
+    // The newest compacted feedback whose fence has signalled (1 or 2 frames late); never a
+    // wait. When none is ready the previous list stands, so requests keep flowing.
+    for (uint64_t late = 1; late <= 2 && late <= f; ++late)
+      if (auto r = compactor.value()->try_read(f - late)) {
+        feedback.clear();
+        for (const auto& [page, count] : r->pages) feedback.push_back(PageFeedback{page, count});
+        fr.feedback_pages = r->pages.size();
+        fr.feedback_frames_late = late;
+        break;
+      }
+    const uint32_t cx = uint32_t(std::clamp(fr.camera.position_m.x / mpt, 0.0, vt_max));
+    const uint32_t cy = uint32_t(std::clamp(fr.camera.position_m.y / mpt, 0.0, vt_max));
+    v.begin_frame(f + 1, cx, cy, feedback);
+    const auto t1 = std::chrono::steady_clock::now();
+    g.run_commands([&](VkCommandBuffer c) {
+      v.record(c);
+      t.record(c, fr.camera);
+    });
+    const auto t2 = std::chrono::steady_clock::now();
+    compactor.value()->submit(t.feedback_buffer(), f);
+    v.end_frame();
+    fr.vt = v.stats();
+    fr.triangles = t.last_stats().triangles;
+    fr.cpu_ms = ms_between(t0, t1);
+    fr.gpu_ms = ms_between(t1, t2);
+    fr.total_ms = ms_between(t0, std::chrono::steady_clock::now());
+    sum.frames = f + 1;
+    sum.pages_composed += fr.vt.composed;
+    sum.oversubscribed_frames += fr.vt.residency.oversubscribed ? 1u : 0u;
+    sum.max_mip_bias = std::max(sum.max_mip_bias, fr.vt.residency.mip_bias);
+    if (on_frame && !on_frame(fr, [&t] { return t.target().read_rgba8(0); })) break;
+  }
+  sum.gpu_bytes = v.gpu_bytes();
+  sum.seconds = ms_between(start, std::chrono::steady_clock::now()) / 1000.0;
+  g.wait_idle();
+  return sum;
+}
+
+}  // namespace tvt

@@ -1,0 +1,56 @@
+// The VT frame loop (the main job of `terravt render`), as a library function so tests and
+// benchmarks drive exactly what the CLI runs: camera path -> terrain pass sampling the VT and
+// writing feedback -> GPU feedback compaction -> residency -> compute composition into the
+// cache -> GPU page-table scatter.
+#pragma once
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "compose/image.h"
+#include "compose/packed_scene.h"
+#include "render/camera.h"
+#include "render/vk_context.h"
+#include "render/vt_system.h"
+
+namespace tvt {
+
+struct FlythroughOptions {
+  Method method = Method::FbpbDpt;
+  uint32_t frames = 120;
+  uint32_t width = 640, height = 360;   // pixels
+  double fps = 10.0;                    // camera-path frames per second
+  uint32_t feedback_divisor = 8;        // N
+  VtSystemOptions vt;
+};
+
+struct FlythroughFrame {
+  uint32_t index = 0;
+  double time_s = 0;
+  Camera camera;
+  size_t feedback_pages = 0;
+  uint64_t feedback_frames_late = 0;    // 0: no feedback yet
+  VtFrameStats vt;
+  uint64_t triangles = 0;
+  double cpu_ms = 0, gpu_ms = 0, total_ms = 0;
+};
+
+struct FlythroughSummary {
+  uint32_t frames = 0;
+  uint64_t pages_composed = 0;
+  uint32_t oversubscribed_frames = 0;
+  uint32_t max_mip_bias = 0;
+  uint64_t gpu_bytes = 0;
+  double seconds = 0;
+};
+
+// Called after every frame; `image` reads back the frame's colour (call it only when needed).
+// Returning false stops the loop early.
+using FrameCallback = std::function<bool(const FlythroughFrame& frame, const std::function<ImageRGBA8()>& image)>;
+
+// Runs the loop on the default flythrough of the scene. Errors name the option at fault.
+Result<FlythroughSummary> run_flythrough(vk::Context& context, const SceneAssets& assets, const FlythroughOptions& options,
+                                         const FrameCallback& on_frame);
+
+}  // namespace tvt
