@@ -14,6 +14,11 @@ double ms_between(std::chrono::steady_clock::time_point a, std::chrono::steady_c
 }
 }  // namespace
 
+CameraPath flythrough_path(const SceneAssets& assets, const TerrainMesh& mesh) {
+  return CameraPath::default_flythrough(assets.desc.terrain.extent_m, assets.desc.terrain.height_m,
+                                        [&mesh](double x, double y) { return mesh.height_m_at(x, y); });
+}
+
 Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& assets, const FlythroughOptions& o,
                                          const FrameCallback& on_frame) {
   if (o.frames < 1) return make_error("frames: must be at least 1");
@@ -38,8 +43,8 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
   if (!compactor) return compactor.error();
 
   const TerrainMesh& mesh = t.mesh();
-  const CameraPath path = CameraPath::default_flythrough(assets.desc.terrain.extent_m, assets.desc.terrain.height_m,
-                                                         [&mesh](double x, double y) { return mesh.height_m_at(x, y); });
+  const CameraPath path = flythrough_path(assets, mesh);
+  const std::vector<double> cuts = path.cut_times();
   const double mpt = mesh.metres_per_texel();
   const double vt_max = double(assets.desc.vt.size_texels() - 1);
 
@@ -52,6 +57,7 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
     fr.index = f;
     fr.time_s = path.start_time() + double(f) / o.fps;
     fr.camera = path.camera_at(std::min(fr.time_s, path.end_time()));
+    for (double c : cuts) fr.cut = fr.cut || (c > fr.time_s - 1.0 / o.fps && c <= fr.time_s && f > 0);
     // The newest compacted feedback whose fence has signalled (1 or 2 frames late); never a
     // wait. When none is ready the previous list stands, so requests keep flowing.
     for (uint64_t late = 1; late <= 2 && late <= f; ++late)

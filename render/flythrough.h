@@ -11,6 +11,7 @@
 #include "compose/image.h"
 #include "compose/packed_scene.h"
 #include "render/camera.h"
+#include "render/terrain_mesh.h"
 #include "render/vk_context.h"
 #include "render/vt_system.h"
 
@@ -29,6 +30,7 @@ struct FlythroughFrame {
   uint32_t index = 0;
   double time_s = 0;
   Camera camera;
+  bool cut = false;                     // the camera path cut to a new shot at this frame
   size_t feedback_pages = 0;
   uint64_t feedback_frames_late = 0;    // 0: no feedback yet
   VtFrameStats vt;
@@ -48,6 +50,9 @@ struct FlythroughSummary {
 // Called after every frame; `image` reads back the frame's colour (call it only when needed).
 // Returning false stops the loop early.
 using FrameCallback = std::function<bool(const FlythroughFrame& frame, const std::function<ImageRGBA8()>& image)>;
+
+// The camera path run_flythrough() follows for this scene (the default flythrough).
+CameraPath flythrough_path(const SceneAssets& assets, const TerrainMesh& mesh);
 
 // Runs the loop on the default flythrough of the scene. Errors name the option at fault.
 Result<FlythroughSummary> run_flythrough(vk::Context& context, const SceneAssets& assets, const FlythroughOptions& options,

@@ -44,6 +44,12 @@ class GpuComposer {
   // Times `repeats` batches of `pages` on the GPU (submit + wait), returns seconds per batch.
   double time_batch(std::span<const PageId> pages, int repeats);
 
+  // The scene buffers (compose_sample.glsl's inputs), for passes that compose per pixel.
+  const vk::Buffer& params_buffer() const { return params_buffer_; }
+  const vk::Buffer& material_buffer() const { return material_buffer_; }
+  const vk::Buffer& meta_buffer() const { return meta_buffer_; }
+  const vk::Buffer& weight_buffer() const { return weight_buffer_; }
+
   vk::Image& output() { return output_; }
   const vk::Image& output() const { return output_; }
   uint32_t slots() const { return slots_; }

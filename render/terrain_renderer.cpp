@@ -61,10 +61,11 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
 
   vk::GraphicsPipelineDesc pd;
   pd.vertex_spirv = shaders::terrain_vert();
-  if (options.vt && options.texel_output)
-    return make_error("terrain renderer: texel_output and vt cannot be combined");
-  pd.fragment_spirv = options.vt ? shaders::terrain_vt_frag()
-                                 : (options.texel_output ? shaders::terrain_texel_frag() : shaders::terrain_frag());
+  if (int(options.vt.has_value()) + int(options.direct.has_value()) + int(options.texel_output) > 1)
+    return make_error("terrain renderer: vt, direct and texel_output are exclusive");
+  pd.fragment_spirv = options.vt       ? shaders::terrain_vt_frag()
+                      : options.direct ? shaders::terrain_direct_frag()
+                                       : (options.texel_output ? shaders::terrain_texel_frag() : shaders::terrain_frag());
   pd.vertex_bindings = {{0, sizeof(TerrainVertex), VK_VERTEX_INPUT_RATE_VERTEX}};
   pd.vertex_attributes = {{gpu::TVT_TERRAIN_ATTR_GRID, 0, VK_FORMAT_R16G16B16A16_UINT, 0}};
   pd.bindings = {
@@ -72,6 +73,14 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
        VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT},
       {gpu::TVT_BIND_TERRAIN_HEIGHTS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, VK_SHADER_STAGE_VERTEX_BIT},
   };
+  if (options.direct) {
+    if (!options.direct->composer) return make_error("terrain renderer: direct inputs need a composer");
+    const VkShaderStageFlags fs = VK_SHADER_STAGE_FRAGMENT_BIT;
+    pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_COMPOSE_PARAMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, fs});
+    pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_MATERIAL_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, fs});
+    pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_META_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, fs});
+    pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_WEIGHTS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, fs});
+  }
   if (options.vt) {
     const TerrainVtInputs& v = *options.vt;
     if (!v.info || !v.entries || !v.cache || v.sampler == VK_NULL_HANDLE || v.feedback_divisor < 1 || v.feedback_divisor > 64)
@@ -107,6 +116,13 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
   r->descriptors_ = context.allocate_descriptor_set(r->pipeline_);
   r->descriptors_.write_buffer(gpu::TVT_BIND_TERRAIN_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, r->frame_buffer_);
   r->descriptors_.write_buffer(gpu::TVT_BIND_TERRAIN_HEIGHTS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, r->height_buffer_);
+  if (options.direct) {
+    const GpuComposer& c = *options.direct->composer;
+    r->descriptors_.write_buffer(gpu::TVT_BIND_TERRAIN_COMPOSE_PARAMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c.params_buffer());
+    r->descriptors_.write_buffer(gpu::TVT_BIND_TERRAIN_MATERIAL_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c.material_buffer());
+    r->descriptors_.write_buffer(gpu::TVT_BIND_TERRAIN_META_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c.meta_buffer());
+    r->descriptors_.write_buffer(gpu::TVT_BIND_TERRAIN_WEIGHTS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c.weight_buffer());
+  }
   if (options.vt) {
     const TerrainVtInputs& v = *options.vt;
     r->descriptors_.write_buffer(gpu::TVT_BIND_TERRAIN_VT_INFO, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, *v.info);

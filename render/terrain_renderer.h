@@ -15,6 +15,7 @@
 
 #include "compose/scene_assets.h"
 #include "render/camera.h"
+#include "render/gpu_composer.h"
 #include "render/render_target.h"
 #include "render/terrain_mesh.h"
 #include "render/vk_context.h"
@@ -42,6 +43,12 @@ struct TerrainVtInputs {
   uint32_t feedback_divisor = 8;        // N: one feedback texel per N x N pixels
 };
 
+// Direct-splat mode: the composition per pixel (terrain_direct.frag). The composer (its
+// scene buffers) must outlive the renderer.
+struct TerrainDirectInputs {
+  const GpuComposer* composer = nullptr;
+};
+
 struct TerrainRendererOptions {
   uint32_t width = 1280;   // pixels
   uint32_t height = 720;
@@ -53,6 +60,7 @@ struct TerrainRendererOptions {
   // kNoTexel in every channel. For precision tests and debugging.
   bool texel_output = false;
   std::optional<TerrainVtInputs> vt;  // set: sample the virtual texture and write feedback
+  std::optional<TerrainDirectInputs> direct;  // set: compose per pixel (exclusive with vt)
 };
 
 struct TerrainFrameStats {

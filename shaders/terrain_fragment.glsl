@@ -61,6 +61,25 @@ vec4 terrain_albedo(TerrainFragment f) {
   }
   return vec4(vt_sample(ti, tf, lod).rgb, 1.0);
 }
+#elif defined(TVT_TERRAIN_DIRECT)
+#include "shared/compose_types.h"
+#include "shared/hash.h"
+layout(std430, set = 0, binding = TVT_BIND_TERRAIN_COMPOSE_PARAMS) readonly buffer ParamsBuf { TvtComposeParams P; };
+layout(std430, set = 0, binding = TVT_BIND_TERRAIN_MATERIAL_TEXELS) readonly buffer MaterialBuf { uint material_texels[]; };
+layout(std430, set = 0, binding = TVT_BIND_TERRAIN_META_TEXELS) readonly buffer MetaBuf { uint meta_texels[]; };
+layout(std430, set = 0, binding = TVT_BIND_TERRAIN_WEIGHTS) readonly buffer WeightBuf { float weights[]; };
+#include "compose_sample.glsl"
+
+// Direct splatting: the whole composition evaluated per pixel at the pixel's footprint (the
+// papers' fragment-shader form) — the baseline the VT path is measured against.
+vec4 terrain_albedo(TerrainFragment f) {
+  const vec2 whole = floor(f.local_texel);
+  const i64vec2 ti = f.anchor_texel + i64vec2(whole);
+  const i64vec2 sub = i64vec2(floor((f.local_texel - whole) * float(1 << TVT_FIXED_BITS)));
+  const i64vec2 pos = (ti << int64_t(TVT_FIXED_BITS)) + sub;
+  const float footprint = max(length(f.dtexel_dx), length(f.dtexel_dy));
+  return vec4(compose_sample(pos.x, pos.y, max(footprint, 1.0), 0xffffffffu).rgb, 1.0);
+}
 #else
 // Without a virtual texture (tests of the raster pass): a height/slope colour ramp (linear RGB).
 vec4 terrain_albedo(TerrainFragment f) {

@@ -16,6 +16,12 @@ TVT_CONST uint TVT_BIND_TERRAIN_VT_ENTRIES = 3u;       // storage uint[]: the pa
 TVT_CONST uint TVT_BIND_TERRAIN_VT_CACHE = 4u;         // sampler2DArray: the physical cache
 TVT_CONST uint TVT_BIND_TERRAIN_FEEDBACK = 5u;         // storage uvec2[]: feedback texels (feedback_types.h)
 TVT_CONST uint TVT_BIND_TERRAIN_FEEDBACK_PARAMS = 6u;  // uniform TvtFeedbackWrite
+// Direct-splat mode (terrain_direct.frag: the composition per pixel, as the papers did) adds,
+// fragment stage, compose_sample.glsl's inputs:
+TVT_CONST uint TVT_BIND_TERRAIN_COMPOSE_PARAMS = 7u;     // storage TvtComposeParams
+TVT_CONST uint TVT_BIND_TERRAIN_MATERIAL_TEXELS = 8u;    // storage uint[]
+TVT_CONST uint TVT_BIND_TERRAIN_META_TEXELS = 9u;        // storage uint[]
+TVT_CONST uint TVT_BIND_TERRAIN_WEIGHTS = 10u;           // storage float[]
 TVT_CONST uint TVT_TERRAIN_ATTR_GRID = 0u;     // vertex attribute: uvec4 (i, j, skirt, 0), R16G16B16A16_UINT
 TVT_CONST uint TVT_HF_FRAC_BITS = 8u;          // heightfield coordinates in 1/256 heightfield texels
 
