@@ -5,6 +5,7 @@
 
 #include "render/feedback_compactor.h"
 #include "render/terrain_renderer.h"
+#include "render/vt_debug.h"
 
 namespace tvt {
 
@@ -28,6 +29,7 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
   auto vt = VtSystem::create(g, packed.value(), o.vt);
   if (!vt) return vt.error();
   VtSystem& v = *vt.value();
+  v.set_debug_view(o.debug_view);
   TerrainRendererOptions ro;
   ro.width = o.width;
   ro.height = o.height;
@@ -88,7 +90,14 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
     sum.pages_composed += fr.vt.composed;
     sum.oversubscribed_frames += fr.vt.residency.oversubscribed ? 1u : 0u;
     sum.max_mip_bias = std::max(sum.max_mip_bias, fr.vt.residency.mip_bias);
-    if (on_frame && !on_frame(fr, [&t] { return t.target().read_rgba8(0); })) break;
+    if (on_frame) {
+      FlythroughViews views;
+      views.frame = [&t] { return t.target().read_rgba8(0); };
+      views.atlas = [&g, &v] { return cache_atlas_image(g, v.cache(), 32, 2); };
+      views.page_table = [&v] { return page_table_image(v.residency().page_table()); };
+      views.feedback = [&g, &t] { return feedback_image(g, t.feedback_buffer(), t.feedback_width(), t.feedback_height()); };
+      if (!on_frame(fr, views)) break;
+    }
   }
   sum.gpu_bytes = v.gpu_bytes();
   sum.seconds = ms_between(start, std::chrono::steady_clock::now()) / 1000.0;

@@ -24,6 +24,7 @@ struct FlythroughOptions {
   double fps = 10.0;                    // camera-path frames per second
   uint32_t feedback_divisor = 8;        // N
   VtSystemOptions vt;
+  int debug_view = 0;                   // TVT_VT_VIEW_*: 1 colours every texel by its data mip
 };
 
 struct FlythroughFrame {
@@ -47,9 +48,16 @@ struct FlythroughSummary {
   double seconds = 0;
 };
 
-// Called after every frame; `image` reads back the frame's colour (call it only when needed).
-// Returning false stops the loop early.
-using FrameCallback = std::function<bool(const FlythroughFrame& frame, const std::function<ImageRGBA8()>& image)>;
+// Read-backs a frame callback may ask for (each blocks; call only what is needed).
+struct FlythroughViews {
+  std::function<ImageRGBA8()> frame;       // the rendered colour
+  std::function<ImageRGBA8()> atlas;       // every cache slot (vt_debug.h)
+  std::function<ImageRGBA8()> page_table;  // every mip window, coloured by data mip
+  std::function<ImageRGBA8()> feedback;    // this frame's feedback texels, coloured by mip
+};
+
+// Called after every frame. Returning false stops the loop early.
+using FrameCallback = std::function<bool(const FlythroughFrame& frame, const FlythroughViews& views)>;
 
 // The camera path run_flythrough() follows for this scene (the default flythrough).
 CameraPath flythrough_path(const SceneAssets& assets, const TerrainMesh& mesh);

@@ -87,7 +87,8 @@ void VtSystem::begin_frame(uint64_t frame, uint32_t camera_x, uint32_t camera_y,
   // Evictions happened in next_request(): their unmaps must reach the GPU before anything
   // samples this frame, together with the recentred windows.
   pending_updates_ = residency_.take_table_updates();
-  const gpu::TvtVtInfo info = make_vt_info(vt_, residency_.page_table(), float(residency_.mip_bias()));
+  gpu::TvtVtInfo info = make_vt_info(vt_, residency_.page_table(), float(residency_.mip_bias()));
+  info.debug_view = debug_view_;
   std::memcpy(info_buffer_.mapped(), &info, sizeof(info));
 }
 

@@ -50,6 +50,8 @@ class VtSystem {
   void end_frame();
 
   const VtFrameStats& stats() const { return stats_; }
+  // Debug view for sampling passes (TVT_VT_VIEW_*), applied from the next begin_frame().
+  void set_debug_view(int view) { debug_view_ = view; }
   const Residency& residency() const { return residency_; }
   const vk::Buffer& info_buffer() const { return info_buffer_; }
   const vk::Buffer& entry_buffer() const { return entry_buffer_; }
@@ -74,6 +76,7 @@ class VtSystem {
   std::vector<PageJob> jobs_;
   std::vector<PageTableUpdate> pending_updates_;
   VtFrameStats stats_;
+  int debug_view_ = 0;
 };
 
 }  // namespace tvt

@@ -7,6 +7,7 @@
 vec4 vt_sample_mip(i64vec2 ti, vec2 tf, int mip) {
   const VtLookup l = vt_lookup(ti, tf, mip);
   if (!l.valid) return vec4(1.0, 0.0, 1.0, 1.0);  // no data at all: visible, never NaN
+  if (VT.debug_view == TVT_VT_VIEW_DATA_MIP) return tvt_mip_colour(l.data_mip);
   return textureLod(vt_cache, vec3(l.local / float(VT.slot_texels), float(l.slot)), 0.0);
 }
 

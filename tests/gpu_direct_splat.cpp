@@ -72,8 +72,8 @@ TEST_F(GpuDirectSplat, VirtualTextureConvergesToTheDirectImage) {
   o.vt.page_budget = 48;
   ImageRGBA8 vt_image;
   uint32_t last_requested = 1;
-  auto run = run_flythrough(ctx(), assets.value(), o, [&](const FlythroughFrame& f, const auto& image) {
-    if (f.index + 1 == o.frames) vt_image = image(), last_requested = f.vt.residency.requested;
+  auto run = run_flythrough(ctx(), assets.value(), o, [&](const FlythroughFrame& f, const FlythroughViews& views) {
+    if (f.index + 1 == o.frames) vt_image = views.frame(), last_requested = f.vt.residency.requested;
     return true;
   });
   ASSERT_TRUE(run.ok()) << run.error().message;

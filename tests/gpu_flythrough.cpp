@@ -32,12 +32,12 @@ TEST_F(GpuFlythrough, HundredFramesStreamPagesWithValidationSilent) {
   o.vt.window_pages = 32;
   uint32_t with_feedback = 0, max_resident = 0;
   ImageRGBA8 last;
-  auto s = run_flythrough(ctx(), assets16(), o, [&](const FlythroughFrame& f, const auto& image) {
+  auto s = run_flythrough(ctx(), assets16(), o, [&](const FlythroughFrame& f, const FlythroughViews& views) {
     with_feedback += f.feedback_pages > 0;
     max_resident = std::max(max_resident, f.vt.residency.resident);
     EXPECT_LE(f.vt.composed, o.vt.page_budget);
     EXPECT_LE(f.feedback_frames_late, 2u);
-    if (f.index + 1 == o.frames) last = image();
+    if (f.index + 1 == o.frames) last = views.frame();
     return true;
   });
   ASSERT_TRUE(s.ok()) << s.error().message;

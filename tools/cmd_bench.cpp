@@ -308,9 +308,11 @@ int run_bench_frame(const BenchFrameArgs& a) {
       all.push_back(f.gpu_ms);
       if (f.vt.composed == 0 && f.index > 5) steady.push_back(f.gpu_ms);
       if (f.cut) cut_frame = int(f.index);
-      // Sharp: nothing requested (every page the view wants, at its wanted mip, is resident).
-      if (cut_frame >= 0 && sharp_after < 0 && f.index > uint32_t(cut_frame) && f.vt.residency.requested == 0)
-        sharp_after = int(f.index) - cut_frame;
+      // Sharp: the feedback already comes from after the cut, and nothing is requested (every
+      // page the view wants, at its wanted mip, is resident).
+      const bool post_cut_feedback =
+          cut_frame >= 0 && f.feedback_frames_late > 0 && f.index >= uint32_t(cut_frame) + f.feedback_frames_late;
+      if (post_cut_feedback && sharp_after < 0 && f.vt.residency.requested == 0) sharp_after = int(f.index) - cut_frame;
       return true;
     });
     if (!run) return fail(cmd, run.error().message, 1);

@@ -34,6 +34,8 @@ struct RenderArgs {
   uint32_t window = 64;
   double fps = 10.0;
   bool quiet = false;
+  bool debug = false;       // also write cache atlas, page table and feedback images
+  bool debug_mips = false;  // colour every texel by the mip its data comes from
 };
 
 int run_render(const RenderArgs& a) {
@@ -70,21 +72,33 @@ int run_render(const RenderArgs& a) {
   fo.vt.cache_slots = a.cache_slots;
   fo.vt.page_budget = a.page_budget;
   fo.vt.window_pages = a.window;
+  fo.debug_view = a.debug_mips ? 1 : 0;
   std::printf("terravt render: %s, V = 2^%u, %ux%u, %u frames, method %s, cache %u pages, budget %u/frame, device %s\n",
               assets->desc.source_path.c_str(), assets->desc.vt.log2_size, a.width, a.height, a.frames,
               a.method.c_str(), a.cache_slots, a.page_budget, g.device_name().c_str());
   uint32_t written = 0;
   std::string write_error;
-  auto summary = run_flythrough(g, assets.value(), fo, [&](const FlythroughFrame& fr, const auto& image) {
+  auto summary = run_flythrough(g, assets.value(), fo, [&](const FlythroughFrame& fr, const FlythroughViews& views) {
     const VtFrameStats& s = fr.vt;
     if (fr.index % a.every == 0 || fr.index + 1 == a.frames) {
       char name[64];
       std::snprintf(name, sizeof(name), "frame_%05u.%s", fr.index, a.format.c_str());
-      if (auto w = write_image((std::filesystem::path(a.out) / name).string(), image()); !w) {
+      if (auto w = write_image((std::filesystem::path(a.out) / name).string(), views.frame()); !w) {
         write_error = w.error().message;
         return false;
       }
       ++written;
+      if (a.debug) {
+        const std::pair<const char*, const std::function<ImageRGBA8()>*> extra[] = {
+            {"atlas", &views.atlas}, {"pagetable", &views.page_table}, {"feedback", &views.feedback}};
+        for (const auto& [what, fn] : extra) {
+          std::snprintf(name, sizeof(name), "%s_%05u.png", what, fr.index);
+          if (auto w = write_image((std::filesystem::path(a.out) / name).string(), (*fn)()); !w) {
+            write_error = w.error().message;
+            return false;
+          }
+        }
+      }
     }
     nlohmann::json j;
     j["frame"] = fr.index;
@@ -140,6 +154,8 @@ const CommandRegistrar k_register{
       app.add_option("--format", a->format, "Frame format: png or exr")->capture_default_str();
       app.add_option("--gpu", a->gpu_name, "Vulkan device name substring or index");
       app.add_flag("--quiet", a->quiet, "No progress line");
+      app.add_flag("--debug", a->debug, "With each written frame, also write the cache atlas, page table and feedback images");
+      app.add_flag("--debug-mips", a->debug_mips, "Colour every texel by the mip of its data (red 0, green 1, yellow 2, blue 3...)");
       return [a] { return run_render(*a); };
     }};
 

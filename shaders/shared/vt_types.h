@@ -6,6 +6,15 @@
 TVT_BEGIN
 
 TVT_CONST int TVT_MAX_VT_MIPS = 32;
+TVT_CONST int TVT_VT_VIEW_ALBEDO = 0;     // normal sampling
+TVT_CONST int TVT_VT_VIEW_DATA_MIP = 1;   // colour = mip of the page the data came from
+
+// Colour of a mip level in debug views: mip 0 red, 1 green, 2 yellow, 3 blue, 4 magenta,
+// 5 cyan, 6 white, then again.
+TVT_FN vec4 tvt_mip_colour(int mip) {
+  const uint c = uint(mip % 7) + 1u;
+  return vec4(float(c & 1u), float((c >> 1u) & 1u), float((c >> 2u) & 1u), 1.0f);
+}
 
 struct TvtVtMip {    // one mip's page-table window, in pages of that mip (vt/page_table.h)
   int origin_x;      // first page covered
@@ -21,7 +30,8 @@ struct TvtVtInfo {
   int slot_texels;   // P + 2B: edge of a cache slot
   int mip_count;
   float mip_bias;    // added to every LOD (residency raises it when oversubscribed)
-  int pad0, pad1;
+  int debug_view;    // TVT_VT_VIEW_*
+  int pad1;
   TvtVtMip mips[TVT_MAX_VT_MIPS];
 };
 

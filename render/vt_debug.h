@@ -1,0 +1,23 @@
+// Debug views a VT user expects: the cache atlas, the page table per mip, the feedback buffer.
+// (Mip-level colouring of the frame itself is VtSystem::set_debug_view(TVT_VT_VIEW_DATA_MIP).)
+#pragma once
+#include <cstdint>
+
+#include "compose/image.h"
+#include "render/vk_context.h"
+#include "vt/page_table.h"
+
+namespace tvt {
+
+// Every slot of the cache (layout GENERAL) in a grid, `columns` slots per row, each slot's
+// (P+2B)^2 texels shrunk by `shrink` (1, 2, 4...) with a 1-pixel gap. Blocking readback.
+ImageRGBA8 cache_atlas_image(vk::Context& context, const vk::Image& cache, uint32_t columns, uint32_t shrink);
+
+// The page table: one panel per mip (its window, one pixel per entry scaled to at least 64
+// pixels wide), coloured by the mip the entry's data comes from; invalid entries black.
+ImageRGBA8 page_table_image(const PageTable& table);
+
+// The feedback buffer (feedback_types.h texels), coloured by requested mip; empty texels black.
+ImageRGBA8 feedback_image(vk::Context& context, const vk::Buffer& feedback, uint32_t width, uint32_t height);
+
+}  // namespace tvt
