@@ -1,0 +1,182 @@
+// Move-only RAII handles of render/vk_context.h: a moved-from object owns nothing; reset()
+// frees in reverse creation order.
+#include <utility>
+
+#include "render/vk_context.h"
+
+namespace tvt::vk {
+
+Buffer::Buffer(Buffer&& o) noexcept
+    : device_(std::exchange(o.device_, VK_NULL_HANDLE)),
+      buffer_(std::exchange(o.buffer_, VK_NULL_HANDLE)),
+      memory_(std::exchange(o.memory_, VK_NULL_HANDLE)),
+      size_(std::exchange(o.size_, 0)),
+      mapped_(std::exchange(o.mapped_, nullptr)) {}
+
+Buffer& Buffer::operator=(Buffer&& o) noexcept {
+  if (this != &o) {
+    reset();
+    device_ = std::exchange(o.device_, VK_NULL_HANDLE);
+    buffer_ = std::exchange(o.buffer_, VK_NULL_HANDLE);
+    memory_ = std::exchange(o.memory_, VK_NULL_HANDLE);
+    size_ = std::exchange(o.size_, 0);
+    mapped_ = std::exchange(o.mapped_, nullptr);
+  }
+  return *this;
+}
+
+Buffer::~Buffer() { reset(); }
+
+void Buffer::reset() {
+  if (device_) {
+    if (buffer_) vkDestroyBuffer(device_, buffer_, nullptr);
+    if (memory_) vkFreeMemory(device_, memory_, nullptr);  // unmaps implicitly
+  }
+  device_ = VK_NULL_HANDLE;
+  buffer_ = VK_NULL_HANDLE;
+  memory_ = VK_NULL_HANDLE;
+  size_ = 0;
+  mapped_ = nullptr;
+}
+
+Image::Image(Image&& o) noexcept
+    : device_(std::exchange(o.device_, VK_NULL_HANDLE)),
+      image_(std::exchange(o.image_, VK_NULL_HANDLE)),
+      view_(std::exchange(o.view_, VK_NULL_HANDLE)),
+      memory_(std::exchange(o.memory_, VK_NULL_HANDLE)),
+      format_(std::exchange(o.format_, VK_FORMAT_UNDEFINED)),
+      width_(std::exchange(o.width_, 0)),
+      height_(std::exchange(o.height_, 0)),
+      layers_(std::exchange(o.layers_, 0)),
+      synchronization2_(std::exchange(o.synchronization2_, false)) {}
+
+Image& Image::operator=(Image&& o) noexcept {
+  if (this != &o) {
+    reset();
+    device_ = std::exchange(o.device_, VK_NULL_HANDLE);
+    image_ = std::exchange(o.image_, VK_NULL_HANDLE);
+    view_ = std::exchange(o.view_, VK_NULL_HANDLE);
+    memory_ = std::exchange(o.memory_, VK_NULL_HANDLE);
+    format_ = std::exchange(o.format_, VK_FORMAT_UNDEFINED);
+    width_ = std::exchange(o.width_, 0);
+    height_ = std::exchange(o.height_, 0);
+    layers_ = std::exchange(o.layers_, 0);
+    synchronization2_ = std::exchange(o.synchronization2_, false);
+  }
+  return *this;
+}
+
+Image::~Image() { reset(); }
+
+void Image::reset() {
+  if (device_) {
+    if (view_) vkDestroyImageView(device_, view_, nullptr);
+    if (image_) vkDestroyImage(device_, image_, nullptr);
+    if (memory_) vkFreeMemory(device_, memory_, nullptr);
+  }
+  device_ = VK_NULL_HANDLE;
+  image_ = VK_NULL_HANDLE;
+  view_ = VK_NULL_HANDLE;
+  memory_ = VK_NULL_HANDLE;
+  format_ = VK_FORMAT_UNDEFINED;
+  width_ = height_ = layers_ = 0;
+  synchronization2_ = false;
+}
+
+ComputePipeline::ComputePipeline(ComputePipeline&& o) noexcept
+    : device_(std::exchange(o.device_, VK_NULL_HANDLE)),
+      pipeline_(std::exchange(o.pipeline_, VK_NULL_HANDLE)),
+      layout_(std::exchange(o.layout_, VK_NULL_HANDLE)),
+      set_layout_(std::exchange(o.set_layout_, VK_NULL_HANDLE)),
+      bindings_(std::exchange(o.bindings_, {})) {}
+
+ComputePipeline& ComputePipeline::operator=(ComputePipeline&& o) noexcept {
+  if (this != &o) {
+    reset();
+    device_ = std::exchange(o.device_, VK_NULL_HANDLE);
+    pipeline_ = std::exchange(o.pipeline_, VK_NULL_HANDLE);
+    layout_ = std::exchange(o.layout_, VK_NULL_HANDLE);
+    set_layout_ = std::exchange(o.set_layout_, VK_NULL_HANDLE);
+    bindings_ = std::exchange(o.bindings_, {});
+  }
+  return *this;
+}
+
+ComputePipeline::~ComputePipeline() { reset(); }
+
+void ComputePipeline::reset() {
+  if (device_) {
+    if (pipeline_) vkDestroyPipeline(device_, pipeline_, nullptr);
+    if (layout_) vkDestroyPipelineLayout(device_, layout_, nullptr);
+    if (set_layout_) vkDestroyDescriptorSetLayout(device_, set_layout_, nullptr);
+  }
+  device_ = VK_NULL_HANDLE;
+  pipeline_ = VK_NULL_HANDLE;
+  layout_ = VK_NULL_HANDLE;
+  set_layout_ = VK_NULL_HANDLE;
+  bindings_.clear();
+}
+
+GraphicsPipeline::GraphicsPipeline(GraphicsPipeline&& o) noexcept
+    : device_(std::exchange(o.device_, VK_NULL_HANDLE)),
+      pipeline_(std::exchange(o.pipeline_, VK_NULL_HANDLE)),
+      layout_(std::exchange(o.layout_, VK_NULL_HANDLE)),
+      set_layout_(std::exchange(o.set_layout_, VK_NULL_HANDLE)),
+      push_stages_(std::exchange(o.push_stages_, 0)),
+      types_(std::exchange(o.types_, {})) {}
+
+GraphicsPipeline& GraphicsPipeline::operator=(GraphicsPipeline&& o) noexcept {
+  if (this != &o) {
+    reset();
+    device_ = std::exchange(o.device_, VK_NULL_HANDLE);
+    pipeline_ = std::exchange(o.pipeline_, VK_NULL_HANDLE);
+    layout_ = std::exchange(o.layout_, VK_NULL_HANDLE);
+    set_layout_ = std::exchange(o.set_layout_, VK_NULL_HANDLE);
+    push_stages_ = std::exchange(o.push_stages_, 0);
+    types_ = std::exchange(o.types_, {});
+  }
+  return *this;
+}
+
+GraphicsPipeline::~GraphicsPipeline() { reset(); }
+
+void GraphicsPipeline::reset() {
+  if (device_) {
+    if (pipeline_) vkDestroyPipeline(device_, pipeline_, nullptr);
+    if (layout_) vkDestroyPipelineLayout(device_, layout_, nullptr);
+    if (set_layout_) vkDestroyDescriptorSetLayout(device_, set_layout_, nullptr);
+  }
+  device_ = VK_NULL_HANDLE;
+  pipeline_ = VK_NULL_HANDLE;
+  layout_ = VK_NULL_HANDLE;
+  set_layout_ = VK_NULL_HANDLE;
+  push_stages_ = 0;
+  types_.clear();
+}
+
+DescriptorSet::DescriptorSet(DescriptorSet&& o) noexcept
+    : device_(std::exchange(o.device_, VK_NULL_HANDLE)),
+      pool_(std::exchange(o.pool_, VK_NULL_HANDLE)),
+      set_(std::exchange(o.set_, VK_NULL_HANDLE)) {}
+
+DescriptorSet& DescriptorSet::operator=(DescriptorSet&& o) noexcept {
+  if (this != &o) {
+    reset();
+    device_ = std::exchange(o.device_, VK_NULL_HANDLE);
+    pool_ = std::exchange(o.pool_, VK_NULL_HANDLE);
+    set_ = std::exchange(o.set_, VK_NULL_HANDLE);
+  }
+  return *this;
+}
+
+DescriptorSet::~DescriptorSet() { reset(); }
+
+void DescriptorSet::reset() {
+  // Destroying the pool frees the set (the pool has no FREE_DESCRIPTOR_SET_BIT).
+  if (device_ && pool_) vkDestroyDescriptorPool(device_, pool_, nullptr);
+  device_ = VK_NULL_HANDLE;
+  pool_ = VK_NULL_HANDLE;
+  set_ = VK_NULL_HANDLE;
+}
+
+}  // namespace tvt::vk
