@@ -93,6 +93,35 @@ TEST_F(GpuDirectSplat, VirtualTextureConvergesToTheDirectImage) {
   const ImageRGBA8 direct_image = direct.value()->render(path.camera_at(path.start_time() + double(o.frames - 1) / o.fps));
   const double db = psnr(vt_image, direct_image, 0);
   RecordProperty("vt_vs_direct_psnr_db", std::to_string(db));
-  std::fprintf(stderr, "VT vs direct PSNR %.2f dB\n", db);
-  EXPECT_GT(db, 30.0);  // measured 32.7 dB; the issue aims at 45 dB at matched LOD (not met yet)
+  std::fprintf(stderr, "VT vs direct PSNR %.2f dB (all pixels)\n", db);
+  EXPECT_GT(db, 30.0);  // measured 32.7 dB over the whole image
+
+  // Matched LOD: the pixels whose VT data comes from mip 0 (same run with data-mip colouring:
+  // mip 0 is pure red before lighting) — there both paths compose at level-0 footprints.
+  o.debug_view = 1;
+  ImageRGBA8 mips;
+  auto run2 = run_flythrough(ctx(), assets.value(), o, [&](const FlythroughFrame& f, const FlythroughViews& views) {
+    if (f.index + 1 == o.frames) mips = views.frame();
+    return true;
+  });
+  ASSERT_TRUE(run2.ok());
+  double se = 0;
+  size_t n = 0;
+  int worst = 0;
+  for (int y = 0; y < mips.height; ++y)
+    for (int x = 0; x < mips.width; ++x) {
+      const uint8_t* m = mips.at(x, y);
+      if (!(m[0] > 20 && int(m[0]) > 4 * (int(m[1]) + int(m[2])))) continue;
+      for (int c = 0; c < 3; ++c) {
+        const int d = int(vt_image.at(x, y)[c]) - int(direct_image.at(x, y)[c]);
+        se += double(d * d);
+        worst = std::max(worst, std::abs(d));
+        ++n;
+      }
+    }
+  ASSERT_GT(n, 60u) << "too few mip-0 pixels to compare";
+  const double matched = 10.0 * std::log10(255.0 * 255.0 * double(n) / std::max(se, 1e-9));
+  std::fprintf(stderr, "VT vs direct PSNR at mip 0: %.2f dB over %zu channels, worst %d/255\n", matched, n, worst);
+  RecordProperty("vt_vs_direct_mip0_psnr_db", std::to_string(matched));
+  EXPECT_GT(matched, 32.0);  // measured 34.3 dB (worst 22/255): bilinear texels vs per-pixel evaluation at feature edges; the issue aims at 45 dB
 }
