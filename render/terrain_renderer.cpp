@@ -206,7 +206,11 @@ void TerrainRenderer::record(VkCommandBuffer cmd, const Camera& camera) {
   vkCmdBindIndexBuffer(cmd, index_buffer_.handle(), 0, VK_INDEX_TYPE_UINT32);
 
   stats_ = {};
-  const std::vector<ChunkDraw> draws = mesh_.select(camera, aspect(), &stats_.chunks);
+  std::vector<ChunkDraw> draws = mesh_.select(camera, aspect(), &stats_.chunks);
+  // Front to back, so early depth tests reject hidden fragments before they shade (and, in VT
+  // mode, before they sample the cache or write feedback).
+  std::stable_sort(draws.begin(), draws.end(),
+                   [](const ChunkDraw& a, const ChunkDraw& b) { return a.distance_m < b.distance_m; });
   for (const ChunkDraw& d : draws) {
     gpu::TvtTerrainDraw push{};
     const int64_t rx = d.origin_x - frame.anchor_x, ry = d.origin_y - frame.anchor_y;  // |.| <= 3V/2

@@ -34,6 +34,9 @@ struct TerrainFragment {
 };
 
 #ifdef TVT_TERRAIN_VT
+// The feedback store is a side effect, which would otherwise switch early depth testing off:
+// hidden fragments would sample the VT for nothing and report pages nobody sees.
+layout(early_fragment_tests) in;
 #include "shared/vt_types.h"
 #include "shared/feedback_types.h"
 layout(std430, set = 0, binding = TVT_BIND_TERRAIN_VT_INFO) readonly buffer VtInfoBuf { TvtVtInfo VT; };
