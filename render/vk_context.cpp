@@ -716,28 +716,24 @@ void DescriptorSet::write_buffer(uint32_t binding, VkDescriptorType type, const 
   vkUpdateDescriptorSets(device_, 1, &w, 0, nullptr);
 }
 
-void DescriptorSet::write_storage_image(uint32_t binding, const Image& image) {
-  TVT_CHECK(set_ != VK_NULL_HANDLE && image.view() != VK_NULL_HANDLE);
-  const VkDescriptorImageInfo info{VK_NULL_HANDLE, image.view(), VK_IMAGE_LAYOUT_GENERAL};
+void DescriptorSet::write_image(uint32_t binding, VkDescriptorType type, const VkDescriptorImageInfo& info) {
+  TVT_CHECK(set_ != VK_NULL_HANDLE && info.imageView != VK_NULL_HANDLE);
   auto w = init<VkWriteDescriptorSet>(VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET);
   w.dstSet = set_;
   w.dstBinding = binding;
   w.descriptorCount = 1;
-  w.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
+  w.descriptorType = type;
   w.pImageInfo = &info;
   vkUpdateDescriptorSets(device_, 1, &w, 0, nullptr);
 }
 
+void DescriptorSet::write_storage_image(uint32_t binding, const Image& image) {
+  write_image(binding, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, {VK_NULL_HANDLE, image.view(), VK_IMAGE_LAYOUT_GENERAL});
+}
+
 void DescriptorSet::write_sampled_image(uint32_t binding, const Image& image, VkSampler sampler, VkImageLayout layout) {
-  TVT_CHECK(set_ != VK_NULL_HANDLE && image.view() != VK_NULL_HANDLE && sampler != VK_NULL_HANDLE);
-  const VkDescriptorImageInfo info{sampler, image.view(), layout};
-  auto w = init<VkWriteDescriptorSet>(VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET);
-  w.dstSet = set_;
-  w.dstBinding = binding;
-  w.descriptorCount = 1;
-  w.descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
-  w.pImageInfo = &info;
-  vkUpdateDescriptorSets(device_, 1, &w, 0, nullptr);
+  TVT_CHECK(sampler != VK_NULL_HANDLE);
+  write_image(binding, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, {sampler, image.view(), layout});
 }
 
 // ---------------------------------------------------------------------------------------

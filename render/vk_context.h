@@ -199,6 +199,7 @@ class DescriptorSet {
   VkDevice device_ = VK_NULL_HANDLE;
   VkDescriptorPool pool_ = VK_NULL_HANDLE;
   VkDescriptorSet set_ = VK_NULL_HANDLE;
+  void write_image(uint32_t binding, VkDescriptorType type, const VkDescriptorImageInfo& info);
   void reset();
 };
 

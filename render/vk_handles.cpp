@@ -1,17 +1,13 @@
 // Move-only RAII handles of render/vk_context.h: a moved-from object owns nothing; reset()
-// frees in reverse creation order.
+// frees in reverse creation order. Move construction is move assignment into the empty
+// (default-initialised) object, so each class lists its members once per direction.
 #include <utility>
 
 #include "render/vk_context.h"
 
 namespace tvt::vk {
 
-Buffer::Buffer(Buffer&& o) noexcept
-    : device_(std::exchange(o.device_, VK_NULL_HANDLE)),
-      buffer_(std::exchange(o.buffer_, VK_NULL_HANDLE)),
-      memory_(std::exchange(o.memory_, VK_NULL_HANDLE)),
-      size_(std::exchange(o.size_, 0)),
-      mapped_(std::exchange(o.mapped_, nullptr)) {}
+Buffer::Buffer(Buffer&& o) noexcept { *this = std::move(o); }
 
 Buffer& Buffer::operator=(Buffer&& o) noexcept {
   if (this != &o) {
@@ -39,16 +35,7 @@ void Buffer::reset() {
   mapped_ = nullptr;
 }
 
-Image::Image(Image&& o) noexcept
-    : device_(std::exchange(o.device_, VK_NULL_HANDLE)),
-      image_(std::exchange(o.image_, VK_NULL_HANDLE)),
-      view_(std::exchange(o.view_, VK_NULL_HANDLE)),
-      memory_(std::exchange(o.memory_, VK_NULL_HANDLE)),
-      format_(std::exchange(o.format_, VK_FORMAT_UNDEFINED)),
-      width_(std::exchange(o.width_, 0)),
-      height_(std::exchange(o.height_, 0)),
-      layers_(std::exchange(o.layers_, 0)),
-      synchronization2_(std::exchange(o.synchronization2_, false)) {}
+Image::Image(Image&& o) noexcept { *this = std::move(o); }
 
 Image& Image::operator=(Image&& o) noexcept {
   if (this != &o) {
@@ -83,12 +70,7 @@ void Image::reset() {
   synchronization2_ = false;
 }
 
-ComputePipeline::ComputePipeline(ComputePipeline&& o) noexcept
-    : device_(std::exchange(o.device_, VK_NULL_HANDLE)),
-      pipeline_(std::exchange(o.pipeline_, VK_NULL_HANDLE)),
-      layout_(std::exchange(o.layout_, VK_NULL_HANDLE)),
-      set_layout_(std::exchange(o.set_layout_, VK_NULL_HANDLE)),
-      bindings_(std::exchange(o.bindings_, {})) {}
+ComputePipeline::ComputePipeline(ComputePipeline&& o) noexcept { *this = std::move(o); }
 
 ComputePipeline& ComputePipeline::operator=(ComputePipeline&& o) noexcept {
   if (this != &o) {
@@ -117,13 +99,7 @@ void ComputePipeline::reset() {
   bindings_.clear();
 }
 
-GraphicsPipeline::GraphicsPipeline(GraphicsPipeline&& o) noexcept
-    : device_(std::exchange(o.device_, VK_NULL_HANDLE)),
-      pipeline_(std::exchange(o.pipeline_, VK_NULL_HANDLE)),
-      layout_(std::exchange(o.layout_, VK_NULL_HANDLE)),
-      set_layout_(std::exchange(o.set_layout_, VK_NULL_HANDLE)),
-      push_stages_(std::exchange(o.push_stages_, 0)),
-      types_(std::exchange(o.types_, {})) {}
+GraphicsPipeline::GraphicsPipeline(GraphicsPipeline&& o) noexcept { *this = std::move(o); }
 
 GraphicsPipeline& GraphicsPipeline::operator=(GraphicsPipeline&& o) noexcept {
   if (this != &o) {
@@ -154,10 +130,7 @@ void GraphicsPipeline::reset() {
   types_.clear();
 }
 
-DescriptorSet::DescriptorSet(DescriptorSet&& o) noexcept
-    : device_(std::exchange(o.device_, VK_NULL_HANDLE)),
-      pool_(std::exchange(o.pool_, VK_NULL_HANDLE)),
-      set_(std::exchange(o.set_, VK_NULL_HANDLE)) {}
+DescriptorSet::DescriptorSet(DescriptorSet&& o) noexcept { *this = std::move(o); }
 
 DescriptorSet& DescriptorSet::operator=(DescriptorSet&& o) noexcept {
   if (this != &o) {
