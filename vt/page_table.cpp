@@ -163,6 +163,27 @@ void PageTable::recentre_mip(uint32_t mip, uint32_t new_x, uint32_t new_y) {
   }
 }
 
+// Calls f(mip d, index, entry) for every windowed entry of the page itself (d == page.mip)
+// and of its descendants at every finer mip d: the square [px << k, (px + 1) << k)^2 with
+// k = page.mip - d, clipped to mip d's window.
+template <class F>
+void PageTable::for_each_descendant_entry(const PageId& page, F&& f) const {
+  for (uint32_t d = page.mip + 1; d-- > 0;) {
+    const MipWindow& win = windows_[d];
+    const uint32_t k = page.mip - d;
+    const Range rx = intersect(Range{uint64_t(page.x) << k, uint64_t(page.x + 1) << k},
+                               Range{win.origin_x, uint64_t(win.origin_x) + win.side});
+    const Range ry = intersect(Range{uint64_t(page.y) << k, uint64_t(page.y + 1) << k},
+                               Range{win.origin_y, uint64_t(win.origin_y) + win.side});
+    if (rx.empty() || ry.empty()) continue;
+    for (uint64_t py = ry.lo; py < ry.hi; ++py)
+      for (uint64_t px = rx.lo; px < rx.hi; ++px) {
+        const uint32_t index = entry_index(PageId{d, uint32_t(px), uint32_t(py)});
+        f(d, index, entries_[win.offset + index]);
+      }
+  }
+}
+
 void PageTable::map(const PageId& page, uint32_t slot) {
   TVT_CHECK(is_valid(config_, page));
   TVT_CHECK(slot < kMaxSlots);
@@ -172,22 +193,9 @@ void PageTable::map(const PageId& page, uint32_t slot) {
   // The page itself (d == mip) and every descendant mip d < mip: the descendants of
   // (px, py) at mip d are the square [px << k, (px + 1) << k)^2, k = mip - d. An entry takes
   // the new page unless it already points at finer data (a mapped descendant).
-  for (uint32_t d = page.mip + 1; d-- > 0;) {
-    const MipWindow& win = windows_[d];
-    const uint32_t k = page.mip - d;
-    const Range rx = intersect(Range{uint64_t(page.x) << k, uint64_t(page.x + 1) << k},
-                               Range{win.origin_x, uint64_t(win.origin_x) + win.side});
-    const Range ry = intersect(Range{uint64_t(page.y) << k, uint64_t(page.y + 1) << k},
-                               Range{win.origin_y, uint64_t(win.origin_y) + win.side});
-    if (rx.empty() || ry.empty()) continue;
-    for (uint64_t py = ry.lo; py < ry.hi; ++py) {
-      for (uint64_t px = rx.lo; px < rx.hi; ++px) {
-        const uint32_t index = entry_index(PageId{d, uint32_t(px), uint32_t(py)});
-        const uint32_t e = entries_[win.offset + index];
-        if (!entry_valid(e) || entry_mip(e) > page.mip) write(d, index, value);
-      }
-    }
-  }
+  for_each_descendant_entry(page, [&](uint32_t d, uint32_t index, uint32_t e) {
+    if (!entry_valid(e) || entry_mip(e) > page.mip) write(d, index, value);
+  });
 }
 
 void PageTable::unmap(const PageId& page) {
@@ -197,22 +205,9 @@ void PageTable::unmap(const PageId& page) {
   const uint32_t fallback = page.mip + 1 < mip_count() ? resolve_entry(page.parent()) : 0u;
   // Entries of the page's square at mip d that name data of `page.mip` can only name this
   // page (its only ancestor at that mip): re-point them at the nearest mapped ancestor.
-  for (uint32_t d = page.mip + 1; d-- > 0;) {
-    const MipWindow& win = windows_[d];
-    const uint32_t k = page.mip - d;
-    const Range rx = intersect(Range{uint64_t(page.x) << k, uint64_t(page.x + 1) << k},
-                               Range{win.origin_x, uint64_t(win.origin_x) + win.side});
-    const Range ry = intersect(Range{uint64_t(page.y) << k, uint64_t(page.y + 1) << k},
-                               Range{win.origin_y, uint64_t(win.origin_y) + win.side});
-    if (rx.empty() || ry.empty()) continue;
-    for (uint64_t py = ry.lo; py < ry.hi; ++py) {
-      for (uint64_t px = rx.lo; px < rx.hi; ++px) {
-        const uint32_t index = entry_index(PageId{d, uint32_t(px), uint32_t(py)});
-        const uint32_t e = entries_[win.offset + index];
-        if (entry_valid(e) && entry_mip(e) == page.mip) write(d, index, fallback);
-      }
-    }
-  }
+  for_each_descendant_entry(page, [&](uint32_t d, uint32_t index, uint32_t e) {
+    if (entry_valid(e) && entry_mip(e) == page.mip) write(d, index, fallback);
+  });
 }
 
 size_t PageTable::host_memory_bytes() const {

@@ -126,6 +126,8 @@ class PageTable {
   void write(uint32_t mip, uint32_t index, uint32_t value);
   uint32_t resolve_entry(const PageId& page) const;  // packed entry or 0
   void recentre_mip(uint32_t mip, uint32_t new_x, uint32_t new_y);
+  template <class F>
+  void for_each_descendant_entry(const PageId& page, F&& f) const;
 
   VtConfig config_;
   uint32_t w_ = 0;
