@@ -67,11 +67,8 @@ float material_lod(int n, float footprint) {
   return log2(footprint * float(P.materials[n].resolution) * 256.0 / float(P.materials[n].period_fp));
 }
 
-vec4 sample_material(int n, int64_t x_fp, int64_t y_fp, float lod) {
-  float u, v;
-  int64_t gx, gy;
-  material_coord(n, x_fp, u, gx);
-  material_coord(n, y_fp, v, gy);
+// Trilinear, wrapping material sample at tile-local coordinates (u, v) from material_coord().
+vec4 sample_material(int n, float u, float v, float lod) {
   const float l = clamp(lod, 0.0, float(P.materials[n].mip_count - 1));
   const int l0 = int(floor(l));
   const int l1 = min(l0 + 1, P.materials[n].mip_count - 1);
@@ -125,7 +122,11 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
   for (int n = 0; n < P.material_count; ++n)
     wts[n] = (material_mask & (1u << uint(n))) != 0u ? weight_at(P.materials[n].weight_layer, x_fp, y_fp) : 0.0;
 
-  vec4 result = sample_material(0, x_fp, y_fp, material_lod(0, footprint));
+  float u0, v0;
+  int64_t g0x, g0y;
+  material_coord(0, x_fp, u0, g0x);
+  material_coord(0, y_fp, v0, g0y);
+  vec4 result = sample_material(0, u0, v0, material_lod(0, footprint));
   float weight_sum = wts[0];
   bool feature_above = false;
 
@@ -138,7 +139,11 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
     if (plain <= 0.0 && (mode == TVT_MODE_LINEAR || mode == TVT_MODE_BLENDMAP)) continue;
 
     const float lod = material_lod(n, footprint);
-    vec4 colour = sample_material(n, x_fp, y_fp, lod);
+    float u, v;    // tile-local material coordinates
+    int64_t gx, gy;  // global material texel (FBPB centroids)
+    material_coord(n, x_fp, u, gx);
+    material_coord(n, y_fp, v, gy);
+    vec4 colour = sample_material(n, u, v, lod);
     float b = 0.0;
     float height = colour.a;
     bool visible = false;
@@ -158,10 +163,6 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
       float w = 0.0;
       if (fade > 0.0) {
         const int64_t R = int64_t(P.materials[n].resolution);
-        int64_t gx, gy;
-        float u, v;
-        material_coord(n, x_fp, u, gx);
-        material_coord(n, y_fp, v, gy);
         const int64_t lx = gx & (R - 1), ly = gy & (R - 1);
         const uint mi = P.materials[n].meta_offset + uint(ly * R + lx);
         const uint w0 = meta_texels[2u * mi], w1 = meta_texels[2u * mi + 1u];
