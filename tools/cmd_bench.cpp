@@ -107,9 +107,7 @@ int run_bench_compose(const BenchComposeArgs& a) {
   }
   const double texels_per_page = double(vt.slot_texels()) * vt.slot_texels();
 
-  vk::ContextOptions co;
-  co.device = a.gpu_name;
-  auto ctx = vk::Context::create(co);
+  auto ctx = gpu_context(a.gpu_name);
   if (!ctx) return fail(cmd, ctx.error().message, 1);
   std::vector<PackedScene> packed;
   for (Method method : k_all_methods) {
@@ -190,9 +188,7 @@ int run_bench_mips(const BenchMipsArgs& a) {
     if (m < 1 || m > 6 || m >= vt.mip_count())
       return fail(cmd, "--mips: each mip must be between 1 and 6 (ground truth supersamples 2^m) and below " +
                            std::to_string(vt.mip_count()), 2);
-  vk::ContextOptions co;
-  co.device = a.gpu_name;
-  auto ctx = vk::Context::create(co);
+  auto ctx = gpu_context(a.gpu_name);
   if (!ctx) return fail(cmd, ctx.error().message, 1);
   auto packed = pack_scene(assets.value(), options_for(*method));
   if (!packed) return fail(cmd, packed.error().message, 2);
@@ -262,9 +258,7 @@ int run_bench_frame(const BenchFrameArgs& a) {
   if (a.frames < 10 || a.frames > 10000) return fail(cmd, "--frames: must be between 10 and 10000", 2);
   auto assets = load_scene_and_assets(a.scene);
   if (!assets) return fail(cmd, assets.error().message, 2);
-  vk::ContextOptions co;
-  co.device = a.gpu_name;
-  auto ctx = vk::Context::create(co);
+  auto ctx = gpu_context(a.gpu_name);
   if (!ctx) return fail(cmd, ctx.error().message, 1);
   vk::Context& g = *ctx.value();
   std::printf("terravt bench frame: %ux%u, %u frames of the default flythrough at %.0f fps, cache %u pages, budget %u, device %s\n\n",

@@ -80,9 +80,7 @@ int run_compose(const ComposeArgs& a) {
     std::vector<std::vector<uint8_t>> texels;
     if (a.device == "gpu") {
       if (!context) {
-        vk::ContextOptions co;
-        co.device = a.gpu_name;
-        auto ctx = vk::Context::create(co);
+        auto ctx = gpu_context(a.gpu_name);
         if (!ctx) return fail(cmd, ctx.error().message + " (use --device cpu for the CPU reference)", 1);
         context = std::move(ctx.value());
         auto c = GpuComposer::create(*context, packed.value(), uint32_t(std::min<size_t>(pages.size(), 64)));

@@ -54,9 +54,7 @@ int run_render(const RenderArgs& a) {
 
   auto assets = load_scene_and_assets(a.scene);
   if (!assets) return fail(cmd, assets.error().message, 2);
-  vk::ContextOptions co;
-  co.device = a.gpu_name;
-  auto ctx = vk::Context::create(co);
+  auto ctx = gpu_context(a.gpu_name);
   if (!ctx) return fail(cmd, ctx.error().message, 1);
   vk::Context& g = *ctx.value();
   std::ofstream stats_file(std::filesystem::path(a.out) / "stats.jsonl");
