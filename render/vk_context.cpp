@@ -470,20 +470,22 @@ Buffer Context::create_buffer(VkDeviceSize size, VkBufferUsageFlags usage, bool 
 }
 
 Image Context::create_image(VkFormat format, uint32_t width, uint32_t height, uint32_t layers,
-                            VkImageUsageFlags usage) {
+                            VkImageUsageFlags usage, uint32_t mip_levels) {
   TVT_CHECK(width > 0 && height > 0 && layers > 0);
+  TVT_CHECK(mip_levels >= 1 && mip_levels <= 32 && (std::max(width, height) >> (mip_levels - 1)) >= 1);
   Image img;
   img.device_ = device_;
   img.format_ = format;
   img.width_ = width;
   img.height_ = height;
   img.layers_ = layers;
+  img.mip_levels_ = mip_levels;
   img.synchronization2_ = features_.synchronization2;
   auto ici = init<VkImageCreateInfo>(VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO);
   ici.imageType = VK_IMAGE_TYPE_2D;
   ici.format = format;
   ici.extent = {width, height, 1};
-  ici.mipLevels = 1;
+  ici.mipLevels = mip_levels;
   ici.arrayLayers = layers;
   ici.samples = VK_SAMPLE_COUNT_1_BIT;
   ici.tiling = VK_IMAGE_TILING_OPTIMAL;
@@ -512,7 +514,7 @@ Image Context::create_image(VkFormat format, uint32_t width, uint32_t height, ui
     vci.image = img.image_;
     vci.viewType = VK_IMAGE_VIEW_TYPE_2D_ARRAY;
     vci.format = format;
-    vci.subresourceRange = {aspect_of(format), 0, 1, 0, layers};
+    vci.subresourceRange = {aspect_of(format), 0, mip_levels, 0, layers};
     TVT_VK_CHECK(vkCreateImageView(device_, &vci, nullptr, &img.view_));
   }
   return img;

@@ -64,8 +64,9 @@ class Buffer {
   void reset();
 };
 
-// A 2D (array) image with its own memory and a default view of all layers (created when the
-// usage allows a view: sampled, storage or attachment; otherwise view() is VK_NULL_HANDLE).
+// A 2D (array) image with its own memory and a default view of all layers and mip levels
+// (created when the usage allows a view: sampled, storage or attachment; otherwise view() is
+// VK_NULL_HANDLE).
 class Image {
  public:
   Image() = default;
@@ -81,6 +82,7 @@ class Image {
   uint32_t width() const { return width_; }
   uint32_t height() const { return height_; }
   uint32_t layers() const { return layers_; }
+  uint32_t mip_levels() const { return mip_levels_; }
   explicit operator bool() const { return image_ != VK_NULL_HANDLE; }
 
  private:
@@ -90,7 +92,7 @@ class Image {
   VkImageView view_ = VK_NULL_HANDLE;
   VkDeviceMemory memory_ = VK_NULL_HANDLE;
   VkFormat format_ = VK_FORMAT_UNDEFINED;
-  uint32_t width_ = 0, height_ = 0, layers_ = 0;
+  uint32_t width_ = 0, height_ = 0, layers_ = 0, mip_levels_ = 0;
   bool synchronization2_ = false;  // the device has synchronization2 on (transition() uses it)
   void reset();
 };
@@ -247,8 +249,10 @@ class Context {
 
   // host_visible: HOST_VISIBLE|HOST_COHERENT memory, mapped; else DEVICE_LOCAL.
   Buffer create_buffer(VkDeviceSize size, VkBufferUsageFlags usage, bool host_visible);
-  // A 2D-array image in VK_IMAGE_LAYOUT_UNDEFINED; usage decides what it may do.
-  Image create_image(VkFormat format, uint32_t width, uint32_t height, uint32_t layers, VkImageUsageFlags usage);
+  // A 2D-array image in VK_IMAGE_LAYOUT_UNDEFINED; usage decides what it may do. mip_levels:
+  // 1 ... 1 + log2(max(width, height)).
+  Image create_image(VkFormat format, uint32_t width, uint32_t height, uint32_t layers, VkImageUsageFlags usage,
+                     uint32_t mip_levels = 1);
   ComputePipeline create_compute_pipeline(std::span<const uint32_t> spirv, std::span<const ComputeBinding> bindings,
                                           uint32_t push_constant_bytes = 0);
   DescriptorSet allocate_descriptor_set(const ComputePipeline& pipeline);

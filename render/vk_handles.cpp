@@ -48,6 +48,7 @@ Image& Image::operator=(Image&& o) noexcept {
     width_ = std::exchange(o.width_, 0);
     height_ = std::exchange(o.height_, 0);
     layers_ = std::exchange(o.layers_, 0);
+    mip_levels_ = std::exchange(o.mip_levels_, 0);
     synchronization2_ = std::exchange(o.synchronization2_, false);
   }
   return *this;
@@ -66,7 +67,7 @@ void Image::reset() {
   view_ = VK_NULL_HANDLE;
   memory_ = VK_NULL_HANDLE;
   format_ = VK_FORMAT_UNDEFINED;
-  width_ = height_ = layers_ = 0;
+  width_ = height_ = layers_ = mip_levels_ = 0;
   synchronization2_ = false;
 }
 
