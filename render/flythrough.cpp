@@ -24,6 +24,7 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
                                          const FrameCallback& on_frame) {
   if (o.frames < 1) return make_error("frames: must be at least 1");
   if (!(o.fps > 0.0)) return make_error("fps: must be > 0");
+  if (o.feedback_mode == FeedbackMode::None) return make_error("feedback_mode: the loop needs feedback");
   auto packed = pack_scene(assets, options_for(o.method));
   if (!packed) return packed.error();
   auto vt = VtSystem::create(g, packed.value(), o.vt);
@@ -33,7 +34,8 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
   TerrainRendererOptions ro;
   ro.width = o.width;
   ro.height = o.height;
-  ro.vt = TerrainVtInputs{&v.info_buffer(), &v.entry_buffer(), &v.cache(), v.sampler(), o.feedback_divisor};
+  ro.vt = TerrainVtInputs{&v.info_buffer(), &v.entry_buffer(), &v.cache(), v.sampler(), o.feedback_divisor,
+                          o.feedback_mode, o.max_anisotropy};
   auto terrain = TerrainRenderer::create(g, assets, ro);
   if (!terrain) return terrain.error();
   TerrainRenderer& t = *terrain.value();

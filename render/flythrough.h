@@ -12,6 +12,7 @@
 #include "compose/packed_scene.h"
 #include "render/camera.h"
 #include "render/terrain_mesh.h"
+#include "render/terrain_renderer.h"
 #include "render/vk_context.h"
 #include "render/vt_system.h"
 
@@ -23,6 +24,8 @@ struct FlythroughOptions {
   uint32_t width = 640, height = 360;   // pixels
   double fps = 10.0;                    // camera-path frames per second
   uint32_t feedback_divisor = 8;        // N
+  FeedbackMode feedback_mode = FeedbackMode::MainPass;  // who writes feedback (MainPass or SeparatePass)
+  uint32_t max_anisotropy = 1;          // VT taps per mip along the footprint (1: isotropic; <= B)
   VtSystemOptions vt;
   int debug_view = 0;                   // TVT_VT_VIEW_*: 1 colours every texel by its data mip
 };

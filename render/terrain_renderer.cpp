@@ -8,6 +8,8 @@
 
 #include <embedded_shaders.h>
 
+#include "shared/feedback_types.h"
+
 namespace tvt {
 
 namespace {
@@ -36,6 +38,14 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
     return make_error("terrain renderer: width and height must be 1 ... 16384 pixels");
   if (!context.features().dynamic_rendering)
     return make_error("terrain renderer: device " + context.device_name() + " lacks dynamicRendering (Vulkan 1.3)");
+  const int sources = int(options.vt.has_value()) + int(options.direct.has_value()) + int(options.plain.has_value());
+  if (sources > 1 || (sources == 1 && options.texel_output))
+    return make_error("terrain renderer: vt, direct, plain and texel_output are exclusive");
+  const bool probe = options.vt && options.vt->probe_output;
+  const FeedbackMode feedback = options.vt ? options.vt->feedback : FeedbackMode::None;
+  if (probe && feedback == FeedbackMode::MainPass)
+    return make_error("terrain renderer: vt.probe_output needs feedback None or SeparatePass");
+
   auto mesh = TerrainMesh::create(heightfield, terrain.extent_m, terrain.height_m, vt, options.mesh);
   if (!mesh) return mesh.error();
 
@@ -56,16 +66,22 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
   td.height = options.height;
   td.color_formats = {VK_FORMAT_R8G8B8A8_UNORM};
   if (options.texel_output) td.color_formats.push_back(VK_FORMAT_R32G32B32A32_UINT);
+  if (probe) td.color_formats.push_back(VK_FORMAT_R32G32B32A32_SFLOAT);
   td.depth = true;
   r->target_ = vk::RenderTarget(context, td);
 
   vk::GraphicsPipelineDesc pd;
   pd.vertex_spirv = shaders::terrain_vert();
-  if (int(options.vt.has_value()) + int(options.direct.has_value()) + int(options.texel_output) > 1)
-    return make_error("terrain renderer: vt, direct and texel_output are exclusive");
-  pd.fragment_spirv = options.vt       ? shaders::terrain_vt_frag()
-                      : options.direct ? shaders::terrain_direct_frag()
-                                       : (options.texel_output ? shaders::terrain_texel_frag() : shaders::terrain_frag());
+  if (options.vt)
+    pd.fragment_spirv = probe                                ? shaders::terrain_vt_probe_frag()
+                        : feedback == FeedbackMode::MainPass ? shaders::terrain_vt_frag()
+                                                             : shaders::terrain_vt_nofb_frag();
+  else if (options.direct)
+    pd.fragment_spirv = options.direct->matched_lod ? shaders::terrain_direct_matched_frag() : shaders::terrain_direct_frag();
+  else if (options.plain)
+    pd.fragment_spirv = shaders::terrain_plain_frag();
+  else
+    pd.fragment_spirv = options.texel_output ? shaders::terrain_texel_frag() : shaders::terrain_frag();
   pd.vertex_bindings = {{0, sizeof(TerrainVertex), VK_VERTEX_INPUT_RATE_VERTEX}};
   pd.vertex_attributes = {{gpu::TVT_TERRAIN_ATTR_GRID, 0, VK_FORMAT_R16G16B16A16_UINT, 0}};
   pd.bindings = {
@@ -73,33 +89,44 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
        VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT},
       {gpu::TVT_BIND_TERRAIN_HEIGHTS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, VK_SHADER_STAGE_VERTEX_BIT},
   };
+  const VkShaderStageFlags fs = VK_SHADER_STAGE_FRAGMENT_BIT;
   if (options.direct) {
     if (!options.direct->composer) return make_error("terrain renderer: direct inputs need a composer");
-    const VkShaderStageFlags fs = VK_SHADER_STAGE_FRAGMENT_BIT;
     pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_COMPOSE_PARAMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, fs});
     pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_MATERIAL_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, fs});
     pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_META_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, fs});
     pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_WEIGHTS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, fs});
   }
+  if (options.plain) {
+    if (!options.plain->texture) return make_error("terrain renderer: plain inputs need a texture");
+    pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_PLAIN, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, fs});
+  }
   if (options.vt) {
     const TerrainVtInputs& v = *options.vt;
     if (!v.info || !v.entries || !v.cache || v.sampler == VK_NULL_HANDLE || v.feedback_divisor < 1 || v.feedback_divisor > 64)
       return make_error("terrain renderer: vt inputs incomplete or feedback_divisor outside 1..64");
-    const VkShaderStageFlags fs = VK_SHADER_STAGE_FRAGMENT_BIT;
+    const uint32_t max_aniso = std::max(1u, vt.border_texels);
+    if (v.max_anisotropy < 1 || v.max_anisotropy > max_aniso)
+      return make_error("terrain renderer: vt.max_anisotropy must be between 1 and the page border B = " +
+                        std::to_string(max_aniso));
     pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_VT_INFO, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, fs});
     pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_VT_ENTRIES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, fs});
     pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_VT_CACHE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, fs});
-    pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_FEEDBACK, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, fs});
-    pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_FEEDBACK_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, fs});
-    r->feedback_.divisor = v.feedback_divisor;
-    r->feedback_.width = (options.width + v.feedback_divisor - 1) / v.feedback_divisor;
-    r->feedback_.height = (options.height + v.feedback_divisor - 1) / v.feedback_divisor;
-    r->feedback_buffer_ = context.create_buffer(VkDeviceSize(r->feedback_.width) * r->feedback_.height * 8,
-                                                VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT |
-                                                    VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
-                                                false);
-    r->feedback_params_buffer_ = context.create_buffer(
-        sizeof(gpu::TvtFeedbackWrite), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT, false);
+    if (feedback == FeedbackMode::MainPass) {
+      pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_FEEDBACK, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, fs});
+      pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_FEEDBACK_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, fs});
+    }
+    if (feedback != FeedbackMode::None) {
+      r->feedback_.divisor = v.feedback_divisor;
+      r->feedback_.width = (options.width + v.feedback_divisor - 1) / v.feedback_divisor;
+      r->feedback_.height = (options.height + v.feedback_divisor - 1) / v.feedback_divisor;
+      r->feedback_buffer_ = context.create_buffer(VkDeviceSize(r->feedback_.width) * r->feedback_.height * 8,
+                                                  VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT |
+                                                      VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+                                                  false);
+      r->feedback_params_buffer_ = context.create_buffer(
+          sizeof(gpu::TvtFeedbackWrite), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT, false);
+    }
   }
   pd.push_constant_bytes = sizeof(gpu::TvtTerrainDraw);
   pd.push_constant_stages = VK_SHADER_STAGE_VERTEX_BIT;
@@ -123,14 +150,45 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
     r->descriptors_.write_buffer(gpu::TVT_BIND_TERRAIN_META_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c.meta_buffer());
     r->descriptors_.write_buffer(gpu::TVT_BIND_TERRAIN_WEIGHTS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c.weight_buffer());
   }
+  if (options.plain) {
+    const PlainTexture& p = *options.plain->texture;
+    r->descriptors_.write_sampled_image(gpu::TVT_BIND_TERRAIN_PLAIN, p.image(), p.sampler(),
+                                        VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL);
+  }
   if (options.vt) {
     const TerrainVtInputs& v = *options.vt;
     r->descriptors_.write_buffer(gpu::TVT_BIND_TERRAIN_VT_INFO, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, *v.info);
     r->descriptors_.write_buffer(gpu::TVT_BIND_TERRAIN_VT_ENTRIES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, *v.entries);
     r->descriptors_.write_sampled_image(gpu::TVT_BIND_TERRAIN_VT_CACHE, *v.cache, v.sampler, VK_IMAGE_LAYOUT_GENERAL);
-    r->descriptors_.write_buffer(gpu::TVT_BIND_TERRAIN_FEEDBACK, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, r->feedback_buffer_);
-    r->descriptors_.write_buffer(gpu::TVT_BIND_TERRAIN_FEEDBACK_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER,
-                                 r->feedback_params_buffer_);
+    if (feedback == FeedbackMode::MainPass) {
+      r->descriptors_.write_buffer(gpu::TVT_BIND_TERRAIN_FEEDBACK, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, r->feedback_buffer_);
+      r->descriptors_.write_buffer(gpu::TVT_BIND_TERRAIN_FEEDBACK_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER,
+                                   r->feedback_params_buffer_);
+    }
+    if (feedback == FeedbackMode::SeparatePass) {
+      // Same vertex stage, draws and depth test at 1/N resolution; colour = feedback texel.
+      vk::RenderTargetDesc fd;
+      fd.width = r->feedback_.width;
+      fd.height = r->feedback_.height;
+      fd.color_formats = {VK_FORMAT_R32G32_UINT};
+      fd.depth = true;
+      r->feedback_target_ = vk::RenderTarget(context, fd);
+      vk::GraphicsPipelineDesc fp = pd;
+      fp.fragment_spirv = shaders::terrain_feedback_frag();
+      fp.color_formats = fd.color_formats;
+      fp.bindings = {
+          pd.bindings[0], pd.bindings[1],
+          {gpu::TVT_BIND_TERRAIN_VT_INFO, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, fs},
+          {gpu::TVT_BIND_TERRAIN_FEEDBACK_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, fs},
+      };
+      r->feedback_pipeline_ = context.create_graphics_pipeline(fp);
+      r->feedback_descriptors_ = context.allocate_descriptor_set(r->feedback_pipeline_);
+      vk::DescriptorSet& s = r->feedback_descriptors_;
+      s.write_buffer(gpu::TVT_BIND_TERRAIN_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, r->frame_buffer_);
+      s.write_buffer(gpu::TVT_BIND_TERRAIN_HEIGHTS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, r->height_buffer_);
+      s.write_buffer(gpu::TVT_BIND_TERRAIN_VT_INFO, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, *v.info);
+      s.write_buffer(gpu::TVT_BIND_TERRAIN_FEEDBACK_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, r->feedback_params_buffer_);
+    }
   }
   return r;
 }
@@ -158,26 +216,34 @@ gpu::TvtTerrainFrame TerrainRenderer::frame_constants(const Camera& camera) cons
   f.terrain = glm::vec4(float(mesh_.height_m()), float(mesh_.extent_m() / hf.width),
                         float(mesh_.extent_m() / hf.height), 0.0f);
   f.hf = glm::uvec4(uint32_t(hf.width), uint32_t(hf.height), mesh_.log2_vt(), 0u);
+  f.sampling = glm::uvec4(0u, 1u, 0u, 0u);
+  if (options_.vt) f.sampling.y = options_.vt->max_anisotropy;
+  if (options_.plain) {
+    f.sampling.x = options_.plain->texture->vt_mip();
+    f.sampling.z = options_.plain->texture->log2_size();
+  }
   return f;
 }
 
 void TerrainRenderer::record(VkCommandBuffer cmd, const Camera& camera) {
   const gpu::TvtTerrainFrame frame = frame_constants(camera);
+  const FeedbackMode feedback = options_.vt ? options_.vt->feedback : FeedbackMode::None;
   // Earlier frames' shader reads of the frame buffer finish before it is overwritten (WAR:
   // an execution dependency is enough).
   // (The compute stage: the feedback compactor of an earlier frame reads the feedback buffer.)
   vkCmdPipelineBarrier(cmd,
                        VK_PIPELINE_STAGE_VERTEX_SHADER_BIT | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT |
-                           VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+                           VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
                        VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 0, nullptr, 0, nullptr, 0, nullptr);
   vkCmdUpdateBuffer(cmd, frame_buffer_.handle(), 0, sizeof(frame), &frame);
-  if (options_.vt) {
-    // Feedback: all texels empty, then this frame's rotating pixel of every N x N block.
+  if (feedback != FeedbackMode::None) {
+    // This frame's rotating pixel of every N x N block; main-pass feedback starts from all
+    // texels empty (the separate pass clears its own target).
     const uint32_t n = feedback_.divisor, i = uint32_t(frames_recorded_ % (uint64_t(n) * n));
     feedback_.offset_x = (i * 7u) % n;  // a scrambled walk over the block
     feedback_.offset_y = (i / n + i * 3u) % n;
     vkCmdUpdateBuffer(cmd, feedback_params_buffer_.handle(), 0, sizeof(feedback_), &feedback_);
-    vkCmdFillBuffer(cmd, feedback_buffer_.handle(), 0, VK_WHOLE_SIZE, 0xffffffffu);
+    if (feedback == FeedbackMode::MainPass) vkCmdFillBuffer(cmd, feedback_buffer_.handle(), 0, VK_WHOLE_SIZE, 0xffffffffu);
   }
   ++frames_recorded_;
   VkMemoryBarrier mb{};
@@ -194,16 +260,10 @@ void TerrainRenderer::record(VkCommandBuffer cmd, const Camera& camera) {
   clears[0].float32[1] = float(sky.g);
   clears[0].float32[2] = float(sky.b);
   clears[0].float32[3] = 1.0f;
-  for (uint32_t& c : clears[1].uint32) c = kNoTexel;
-  target_.begin(cmd, clears, 0.0f);
-
-  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline_.handle());
-  const VkDescriptorSet set = descriptors_.handle();
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline_.layout(), 0, 1, &set, 0, nullptr);
-  const VkDeviceSize offset = 0;
-  const VkBuffer vb = vertex_buffer_.handle();
-  vkCmdBindVertexBuffers(cmd, 0, 1, &vb, &offset);
-  vkCmdBindIndexBuffer(cmd, index_buffer_.handle(), 0, VK_INDEX_TYPE_UINT32);
+  if (options_.texel_output)
+    for (uint32_t& c : clears[1].uint32) c = kNoTexel;
+  else
+    for (float& c : clears[1].float32) c = -1.0f;  // the VT probe's "sky"
 
   stats_ = {};
   std::vector<ChunkDraw> draws = mesh_.select(camera, aspect(), &stats_.chunks);
@@ -211,6 +271,33 @@ void TerrainRenderer::record(VkCommandBuffer cmd, const Camera& camera) {
   // mode, before they sample the cache or write feedback).
   std::stable_sort(draws.begin(), draws.end(),
                    [](const ChunkDraw& a, const ChunkDraw& b) { return a.distance_m < b.distance_m; });
+  target_.begin(cmd, clears, 0.0f);
+  draw_chunks(cmd, pipeline_, descriptors_, draws, frame);
+  target_.end(cmd);
+  if (feedback == FeedbackMode::SeparatePass) record_feedback_pass(cmd, draws, frame);
+  if (feedback != FeedbackMode::None) {
+    // Feedback texels (fragment stores or the separate pass's copy) are read by the
+    // compactor's compute passes.
+    VkMemoryBarrier fb{};
+    fb.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
+    fb.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
+    fb.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_TRANSFER_READ_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+                         VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &fb, 0, nullptr, 0,
+                         nullptr);
+  }
+}
+
+void TerrainRenderer::draw_chunks(VkCommandBuffer cmd, const vk::GraphicsPipeline& pipeline, const vk::DescriptorSet& set,
+                                  const std::vector<ChunkDraw>& draws, const gpu::TvtTerrainFrame& frame) {
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline.handle());
+  const VkDescriptorSet s = set.handle();
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline.layout(), 0, 1, &s, 0, nullptr);
+  const VkDeviceSize offset = 0;
+  const VkBuffer vb = vertex_buffer_.handle();
+  vkCmdBindVertexBuffers(cmd, 0, 1, &vb, &offset);
+  vkCmdBindIndexBuffer(cmd, index_buffer_.handle(), 0, VK_INDEX_TYPE_UINT32);
+  uint64_t triangles = 0;
   for (const ChunkDraw& d : draws) {
     gpu::TvtTerrainDraw push{};
     const int64_t rx = d.origin_x - frame.anchor_x, ry = d.origin_y - frame.anchor_y;  // |.| <= 3V/2
@@ -218,22 +305,39 @@ void TerrainRenderer::record(VkCommandBuffer cmd, const Camera& camera) {
     push.rel_texel = glm::ivec2(int32_t(rx), int32_t(ry));
     push.quad_texels = mesh_.quad_texels();
     push.skirt_depth_m = float(d.skirt_depth_m);
-    vkCmdPushConstants(cmd, pipeline_.layout(), VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(push), &push);
+    vkCmdPushConstants(cmd, pipeline.layout(), VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(push), &push);
     const LodRange& lod = mesh_.lod(d.lod);
     vkCmdDrawIndexed(cmd, lod.index_count, 1, lod.first_index, 0, 0);
-    stats_.triangles += lod.index_count / 3;
+    triangles += lod.index_count / 3;
   }
-  target_.end(cmd);
-  if (options_.vt) {
-    // Feedback texels written by fragments are read by the compactor's compute passes.
-    VkMemoryBarrier fb{};
-    fb.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
-    fb.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
-    fb.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_TRANSFER_READ_BIT;
-    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT,
-                         VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &fb, 0, nullptr, 0,
-                         nullptr);
-  }
+  if (&pipeline == &pipeline_) stats_.triangles = triangles;
+}
+
+// FeedbackMode::SeparatePass: the same draws into the 1/N-resolution target. The viewport is
+// W/N x H/N pixels (fractional), shifted so that the centre of texel (x, y) lands on the centre
+// of full-resolution pixel (x N + offset_x, y N + offset_y): x_fb = x_full / N + 1/2 - (offset +
+// 1/2) / N. Then the image is copied into the feedback buffer (the layout main-pass feedback uses).
+void TerrainRenderer::record_feedback_pass(VkCommandBuffer cmd, const std::vector<ChunkDraw>& draws,
+                                           const gpu::TvtTerrainFrame& frame) {
+  std::vector<VkClearColorValue> clears(1);
+  for (uint32_t& c : clears[0].uint32) c = gpu::TVT_FEEDBACK_EMPTY_WORD;
+  feedback_target_.begin(cmd, clears, 0.0f);
+  const float n = float(feedback_.divisor);
+  VkViewport vp{};
+  vp.x = 0.5f - (float(feedback_.offset_x) + 0.5f) / n;
+  vp.y = 0.5f - (float(feedback_.offset_y) + 0.5f) / n;
+  vp.width = float(options_.width) / n;
+  vp.height = float(options_.height) / n;
+  vp.minDepth = 0.0f;
+  vp.maxDepth = 1.0f;
+  vkCmdSetViewport(cmd, 0, 1, &vp);
+  draw_chunks(cmd, feedback_pipeline_, feedback_descriptors_, draws, frame);
+  feedback_target_.end(cmd);
+  VkBufferImageCopy region{};
+  region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+  region.imageExtent = {feedback_.width, feedback_.height, 1};
+  vkCmdCopyImageToBuffer(cmd, feedback_target_.color(0).handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                         feedback_buffer_.handle(), 1, &region);
 }
 
 ImageRGBA8 TerrainRenderer::render(const Camera& camera) {

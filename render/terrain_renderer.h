@@ -16,6 +16,7 @@
 #include "compose/scene_assets.h"
 #include "render/camera.h"
 #include "render/gpu_composer.h"
+#include "render/plain_texture.h"
 #include "render/render_target.h"
 #include "render/terrain_mesh.h"
 #include "render/vk_context.h"
@@ -33,20 +34,52 @@ struct TerrainLighting {
   std::optional<glm::dvec3> albedo_override;   // set: constant albedo instead of terrain_albedo()
 };
 
-// Virtual-texture mode: albedo comes from the VT (terrain_vt.frag) and the pass writes
-// feedback. The objects must outlive the renderer (render/vt_system.h owns them).
+// Who writes the virtual texture's feedback (page ids at 1/N of the view resolution, DESIGN §5).
+enum class FeedbackMode : uint8_t {
+  None,          // no feedback (a second view of the same VT, or measuring the sampling alone)
+  MainPass,      // the colour pass writes it for one rotating pixel per N x N block (default)
+  SeparatePass,  // a separate pass at 1/N resolution with its own depth writes every texel;
+                 // its viewport is shifted so texel (x, y) sees the scene point of the same
+                 // rotating full-resolution pixel MainPass would report (terrain_types.h)
+};
+
+// Virtual-texture mode: albedo comes from the VT (terrain_vt*.frag) and, unless the feedback
+// mode is None, the renderer fills feedback_buffer(). The objects must outlive the renderer
+// (render/vt_system.h owns them).
 struct TerrainVtInputs {
   const vk::Buffer* info = nullptr;     // TvtVtInfo
   const vk::Buffer* entries = nullptr;  // page table
   const vk::Image* cache = nullptr;     // physical cache (layout GENERAL)
   VkSampler sampler = VK_NULL_HANDLE;
   uint32_t feedback_divisor = 8;        // N: one feedback texel per N x N pixels
+  FeedbackMode feedback = FeedbackMode::MainPass;
+  // Anisotropic filtering: up to this many bilinear taps per mip along the footprint's major
+  // axis, the LOD from major axis / taps (vt_lod.glsl). 1: isotropic trilinear. At most the
+  // page border B, so the taps stay inside the looked-up slot (docs/renderer.md). Feedback
+  // asks for the mips the anisotropic LOD selects.
+  uint32_t max_anisotropy = 1;
+  // Adds colour attachment 1 (R32G32B32A32_SFLOAT), per pixel: x LOD, y data mip of the finer
+  // lookup, z data mip of the coarser one (-1: one mip only), w distance in data-mip texels from
+  // the sample points to the nearest page-payload edge (< 1/2: bilinear taps read the border).
+  // Sky pixels: -1. For tests; needs feedback None or SeparatePass.
+  bool probe_output = false;
 };
 
-// Direct-splat mode: the composition per pixel (terrain_direct.frag). The composer (its
+// Direct-splat mode: the composition per pixel (terrain_direct*.frag). The composer (its
 // scene buffers) must outlive the renderer.
 struct TerrainDirectInputs {
   const GpuComposer* composer = nullptr;
+  // false: the composition at the pixel's exact position with the pixel's footprint (the
+  // papers' form). true: at the texel centres of the VT mip(s) the VT LOD (no bias) selects,
+  // filtered as the VT sampler filters the cache — what the VT shows when every wanted page
+  // is resident (tests).
+  bool matched_lod = false;
+};
+
+// Plain-texture mode: one mip-mapped texture over the terrain (render/plain_texture.h), which
+// must outlive the renderer.
+struct TerrainPlainInputs {
+  const PlainTexture* texture = nullptr;
 };
 
 struct TerrainRendererOptions {
@@ -59,8 +92,10 @@ struct TerrainRendererOptions {
   // as floor (x, y: low 32 bits) and fraction (z, w: float bits); sky pixels keep
   // kNoTexel in every channel. For precision tests and debugging.
   bool texel_output = false;
-  std::optional<TerrainVtInputs> vt;  // set: sample the virtual texture and write feedback
-  std::optional<TerrainDirectInputs> direct;  // set: compose per pixel (exclusive with vt)
+  // At most one albedo source; none: the height/slope colour ramp.
+  std::optional<TerrainVtInputs> vt;          // sample the virtual texture (and write feedback)
+  std::optional<TerrainDirectInputs> direct;  // compose per pixel
+  std::optional<TerrainPlainInputs> plain;    // sample one plain texture
 };
 
 struct TerrainFrameStats {
@@ -89,8 +124,9 @@ class TerrainRenderer {
   const vk::RenderTarget& target() const { return target_; }
   const TerrainFrameStats& last_stats() const { return stats_; }
   const TerrainRendererOptions& options() const { return options_; }
-  // VT mode: the feedback texels of the last recorded frame (feedback_types.h format, empty
-  // texels all ones), feedback_width() x feedback_height().
+  // VT mode with feedback: the feedback texels of the last recorded frame (feedback_types.h
+  // format, empty texels all ones), feedback_width() x feedback_height(); ready for the
+  // compute stage (and transfers) after record().
   const vk::Buffer& feedback_buffer() const { return feedback_buffer_; }
   uint32_t feedback_width() const { return feedback_.width; }
   uint32_t feedback_height() const { return feedback_.height; }
@@ -110,6 +146,14 @@ class TerrainRenderer {
   vk::GraphicsPipeline pipeline_;
   vk::DescriptorSet descriptors_;
   vk::RenderTarget target_;
+  // FeedbackMode::SeparatePass: the low-resolution pass.
+  vk::GraphicsPipeline feedback_pipeline_;
+  vk::DescriptorSet feedback_descriptors_;
+  vk::RenderTarget feedback_target_;
+
+  void draw_chunks(VkCommandBuffer cmd, const vk::GraphicsPipeline& pipeline, const vk::DescriptorSet& set,
+                   const std::vector<ChunkDraw>& draws, const gpu::TvtTerrainFrame& frame);
+  void record_feedback_pass(VkCommandBuffer cmd, const std::vector<ChunkDraw>& draws, const gpu::TvtTerrainFrame& frame);
   TerrainFrameStats stats_;
 };
 

@@ -1,5 +1,15 @@
-// Terrain fragment stage, included by terrain.frag and terrain_texel.frag (the latter defines
-// TVT_TERRAIN_TEXEL_OUTPUT and writes the VT texel coordinate to a second attachment).
+// Terrain fragment stage, included by one small .frag per variant that defines what the albedo
+// comes from:
+//   (nothing)                  height/slope colour ramp (terrain.frag); with
+//                              TVT_TERRAIN_TEXEL_OUTPUT also the VT texel coordinate on a
+//                              second attachment (terrain_texel.frag)
+//   TVT_TERRAIN_VT             the virtual texture (terrain_vt_nofb.frag); plus
+//                              TVT_TERRAIN_VT_FEEDBACK: main-pass feedback (terrain_vt.frag),
+//                              TVT_TERRAIN_VT_PROBE: a probe attachment (terrain_vt_probe.frag)
+//   TVT_TERRAIN_DIRECT         the composition per pixel (terrain_direct.frag); plus
+//                              TVT_TERRAIN_DIRECT_MATCHED: at the VT's texel centres and mips
+//                              (terrain_direct_matched.frag)
+//   TVT_TERRAIN_PLAIN          one mip-mapped texture (terrain_plain.frag)
 //
 // Albedo comes from terrain_albedo(TerrainFragment): the single place where virtual-texture
 // sampling plugs in. Everything it may need is in TerrainFragment; the level-0 VT texel
@@ -21,6 +31,10 @@ layout(location = 0) out vec4 out_color;
 #ifdef TVT_TERRAIN_TEXEL_OUTPUT
 layout(location = 1) out uvec4 out_texel;  // x, y: floor of the texel coordinate (low 32 bits); z, w: fraction bits
 #endif
+#ifdef TVT_TERRAIN_VT_PROBE
+layout(location = 1) out vec4 out_probe;   // vt_probe(); -1 everywhere when the albedo is overridden
+vec4 g_probe = vec4(-1.0);
+#endif
 
 struct TerrainFragment {
   i64vec2 anchor_texel;  // level-0 VT texel of the camera (exact integers)
@@ -38,31 +52,59 @@ struct TerrainFragment {
 // hidden fragments would sample the VT for nothing and report pages nobody sees.
 layout(early_fragment_tests) in;
 #include "shared/vt_types.h"
-#include "shared/feedback_types.h"
 layout(std430, set = 0, binding = TVT_BIND_TERRAIN_VT_INFO) readonly buffer VtInfoBuf { TvtVtInfo VT; };
 layout(std430, set = 0, binding = TVT_BIND_TERRAIN_VT_ENTRIES) readonly buffer VtEntryBuf { uint pt_entries[]; };
 layout(set = 0, binding = TVT_BIND_TERRAIN_VT_CACHE) uniform sampler2DArray vt_cache;
+#ifdef TVT_TERRAIN_VT_FEEDBACK
 layout(std430, set = 0, binding = TVT_BIND_TERRAIN_FEEDBACK) writeonly buffer FeedbackBuf { uvec2 feedback[]; };
 layout(std140, set = 0, binding = TVT_BIND_TERRAIN_FEEDBACK_PARAMS) uniform FeedbackParams { TvtFeedbackWrite FB; };
+#endif
 #include "vt_sample.glsl"
 
-// Albedo through the virtual texture; one rotating pixel per N x N block also reports the
-// page its LOD wants (before any fallback to a resident ancestor).
+#ifdef TVT_TERRAIN_VT_PROBE
+// Distance in data-mip texels from the lookup's sample point to the nearest edge of the page
+// payload: below 1/2 the bilinear taps read border texels. -1 without data.
+float vt_edge_distance(VtLookup l) {
+  if (!l.valid) return -1.0;
+  const float b = float(VT.border_texels), e = float(VT.slot_texels - VT.border_texels);
+  return min(min(l.local.x - b, l.local.y - b), min(e - l.local.x, e - l.local.y));
+}
+
+// Test probe (attachment 1): LOD, the data mips of the (one or two) lookups, and how close
+// their sample points come to a payload edge.
+vec4 vt_probe(i64vec2 ti, vec2 tf, float lod) {
+  int m0;
+  float t;
+  vt_mip_pair(lod, m0, t);
+  const VtLookup a = vt_lookup(ti, tf, m0);
+  float edge = vt_edge_distance(a), coarse_mip = -1.0;
+  if (t > 0.0) {
+    const VtLookup b = vt_lookup(ti, tf, m0 + 1);
+    edge = min(edge, vt_edge_distance(b));
+    coarse_mip = b.valid ? float(b.data_mip) : -2.0;
+  }
+  return vec4(lod, a.valid ? float(a.data_mip) : -2.0, coarse_mip, edge);
+}
+#endif
+
+// Albedo through the virtual texture. With main-pass feedback, one rotating pixel per N x N
+// block also reports the page its LOD wants (before any fallback to a resident ancestor).
 vec4 terrain_albedo(TerrainFragment f) {
   const vec2 whole = floor(f.local_texel);
   const i64vec2 ti = f.anchor_texel + i64vec2(whole);
   const vec2 tf = f.local_texel - whole;
-  const float lod = vt_lod(f.dtexel_dx, f.dtexel_dy);
+  const VtFootprint fp = vt_footprint(f.dtexel_dx, f.dtexel_dy, VT.mip_bias, int(F.sampling.y));
+#ifdef TVT_TERRAIN_VT_FEEDBACK
   const uvec2 px = uvec2(gl_FragCoord.xy);
   if (px.x % FB.divisor == FB.offset_x && px.y % FB.divisor == FB.offset_y) {
-    const int m = clamp(int(floor(lod)), 0, VT.mip_count - 1);
-    const i64vec2 clamped = clamp(ti, i64vec2(0), i64vec2((int64_t(1) << VT.log2_vt) - 1));
-    const uvec2 page = uvec2(clamped >> int64_t(VT.log2_page + m));
     const uvec2 fb = px / FB.divisor;
-    if (fb.x < FB.width && fb.y < FB.height)
-      feedback[fb.y * FB.width + fb.x] = uvec2(tvt_feedback_word0(uint(m), page.x), tvt_feedback_word1(page.y));
+    if (fb.x < FB.width && fb.y < FB.height) feedback[fb.y * FB.width + fb.x] = vt_feedback_texel(ti, fp.lod);
   }
-  return vec4(vt_sample(ti, tf, lod).rgb, 1.0);
+#endif
+#ifdef TVT_TERRAIN_VT_PROBE
+  g_probe = vt_probe(ti, tf, fp.lod);
+#endif
+  return vec4((fp.taps > 1 ? vt_sample_aniso(ti, tf, fp) : vt_sample(ti, tf, fp.lod)).rgb, 1.0);
 }
 #elif defined(TVT_TERRAIN_DIRECT)
 #include "shared/compose_types.h"
@@ -73,6 +115,48 @@ layout(std430, set = 0, binding = TVT_BIND_TERRAIN_META_TEXELS) readonly buffer 
 layout(std430, set = 0, binding = TVT_BIND_TERRAIN_WEIGHTS) readonly buffer WeightBuf { float weights[]; };
 #include "compose_sample.glsl"
 
+#ifdef TVT_TERRAIN_DIRECT_MATCHED
+#include "vt_lod.glsl"
+// Texel i of VT mip `mip` exactly as compose.comp writes it into a page: the composition at
+// the texel's centre with a footprint of 2^mip level-0 texels, edge texels repeated beyond
+// the terrain.
+vec4 direct_texel(i64vec2 i, int mip) {
+  const int64_t last = (int64_t(1) << int64_t(P.log2_vt - mip)) - int64_t(1);
+  const i64vec2 c = clamp(i, i64vec2(0), i64vec2(last));
+  const int64_t sub = int64_t(mip + TVT_FIXED_BITS);
+  const i64vec2 pos = (c << sub) + (int64_t(1) << (sub - int64_t(1)));
+  return compose_sample(pos.x, pos.y, exp2(float(mip)), 0xffffffffu);
+}
+
+// Bilinear between the four texel centres around the position, weighted as the VT's
+// hardware bilinear fetch weights them (vt_lookup's in-page coordinate minus 1/2).
+vec4 direct_bilinear(i64vec2 ti, vec2 tf, int mip) {
+  const int64_t m = int64_t(mip);
+  const i64vec2 xi = ti >> m;
+  const vec2 u = (vec2(ti - (xi << m)) + tf) * exp2(-float(mip)) - 0.5;
+  const vec2 fu = floor(u);
+  const vec2 w = u - fu;
+  const i64vec2 i0 = xi + i64vec2(fu);
+  return mix(mix(direct_texel(i0, mip), direct_texel(i0 + i64vec2(1, 0), mip), w.x),
+             mix(direct_texel(i0 + i64vec2(0, 1), mip), direct_texel(i0 + i64vec2(1, 1), mip), w.x), w.y);
+}
+
+// Direct splatting at matched LOD: the composition evaluated at the texel centres of the
+// mip(s) the VT's LOD selects (vt_lod_iso, no bias) and filtered as vt_sample() filters the
+// cache: bilinear within a mip, linear across two. The VT image without the cache.
+vec4 terrain_albedo(TerrainFragment f) {
+  const vec2 whole = floor(f.local_texel);
+  const i64vec2 ti = f.anchor_texel + i64vec2(whole);
+  const vec2 tf = f.local_texel - whole;
+  const int mip_count = P.log2_vt - findMSB(uint(P.page_texels)) + 1;
+  const float l = clamp(vt_lod_iso(f.dtexel_dx, f.dtexel_dy, 0.0), 0.0, float(mip_count - 1));
+  const int m0 = int(floor(l));
+  const float t = m0 + 1 >= mip_count ? 0.0 : l - float(m0);
+  const vec4 a = direct_bilinear(ti, tf, m0);
+  if (t <= 0.0) return vec4(a.rgb, 1.0);
+  return vec4(mix(a, direct_bilinear(ti, tf, m0 + 1), t).rgb, 1.0);
+}
+#else
 // Direct splatting: the whole composition evaluated per pixel at the pixel's footprint (the
 // papers' fragment-shader form) — the baseline the VT path is measured against.
 vec4 terrain_albedo(TerrainFragment f) {
@@ -82,6 +166,23 @@ vec4 terrain_albedo(TerrainFragment f) {
   const i64vec2 pos = (ti << int64_t(TVT_FIXED_BITS)) + sub;
   const float footprint = max(length(f.dtexel_dx), length(f.dtexel_dy));
   return vec4(compose_sample(pos.x, pos.y, max(footprint, 1.0), 0xffffffffu).rgb, 1.0);
+}
+#endif
+#elif defined(TVT_TERRAIN_PLAIN)
+layout(set = 0, binding = TVT_BIND_TERRAIN_PLAIN) uniform sampler2DArray plain_texture;
+
+// One ordinary mip-mapped texture over the whole terrain, hardware trilinear (the baseline a
+// VT is measured against). Its texel coordinate is built like the VT's: the anchor's integer
+// plain texel plus a small float, so only the final [0,1] UV is a whole-terrain float; at
+// 2^12 plain texels its rounding is 2^-12 texel.
+vec4 terrain_albedo(TerrainFragment f) {
+  const int64_t s = int64_t(F.sampling.x);
+  const i64vec2 hi = f.anchor_texel >> s;
+  const vec2 lo = vec2(f.anchor_texel - (hi << s));
+  const float to_plain = exp2(-float(F.sampling.x)), to_uv = exp2(-float(F.sampling.z));
+  const vec2 uv = (vec2(hi) + (lo + f.local_texel) * to_plain) * to_uv;
+  const float d = to_plain * to_uv;
+  return vec4(textureGrad(plain_texture, vec3(uv, 0.0), f.dtexel_dx * d, f.dtexel_dy * d).rgb, 1.0);
 }
 #else
 // Without a virtual texture (tests of the raster pass): a height/slope colour ramp (linear RGB).
@@ -116,6 +217,9 @@ void main() {
   // A non-finite colour must never pass silently: paint it magenta (tests look for it).
   if (any(isnan(c)) || any(isinf(c))) c = vec3(1.0, 0.0, 1.0);
   out_color = vec4(c, 1.0);
+#ifdef TVT_TERRAIN_VT_PROBE
+  out_probe = g_probe;
+#endif
 #ifdef TVT_TERRAIN_TEXEL_OUTPUT
   const vec2 whole = floor(v_local_texel);
   const i64vec2 t = f.anchor_texel + i64vec2(whole);

@@ -1,30 +1,74 @@
 // Sampling through the virtual texture (DESIGN §5): vt_lookup.glsl plus the physical cache.
-// The includer also declares sampler2DArray vt_cache (bilinear, clamp to edge).
+// The includer also declares sampler2DArray vt_cache (bilinear, clamp to edge, no mips).
 #ifndef TVT_VT_SAMPLE_GLSL
 #define TVT_VT_SAMPLE_GLSL
 #include "vt_lookup.glsl"
+#include "vt_lod.glsl"
+
+// Bilinear sample at a position inside a slot (border included), in slot texels.
+vec4 vt_fetch(uint slot, vec2 local) {
+  return textureLod(vt_cache, vec3(local / float(VT.slot_texels), float(slot)), 0.0);
+}
 
 vec4 vt_sample_mip(i64vec2 ti, vec2 tf, int mip) {
   const VtLookup l = vt_lookup(ti, tf, mip);
   if (!l.valid) return vec4(1.0, 0.0, 1.0, 1.0);  // no data at all: visible, never NaN
   if (VT.debug_view == TVT_VT_VIEW_DATA_MIP) return tvt_mip_colour(l.data_mip);
-  return textureLod(vt_cache, vec3(l.local / float(VT.slot_texels), float(l.slot)), 0.0);
+  return vt_fetch(l.slot, l.local);
 }
 
 // LOD from the footprint in level-0 texels per pixel (max of the two derivative lengths).
-float vt_lod(vec2 dx, vec2 dy) {
-  const float rho = max(length(dx), length(dy));
-  return max(log2(max(rho, 1e-8)) + VT.mip_bias, 0.0);
+float vt_lod(vec2 dx, vec2 dy) { return vt_lod_iso(dx, dy, VT.mip_bias); }
+
+// The two mips a (trilinear) sample at `lod` reads and the weight of the coarser one.
+void vt_mip_pair(float lod, out int m0, out float t) {
+  const float l = clamp(lod, 0.0, float(VT.mip_count - 1));
+  m0 = int(floor(l));
+  t = m0 + 1 >= VT.mip_count ? 0.0 : l - float(m0);
 }
 
 // Trilinear: bilinear inside the border of two pages, blended across mips (two lookups).
 vec4 vt_sample(i64vec2 ti, vec2 tf, float lod) {
-  const float l = clamp(lod, 0.0, float(VT.mip_count - 1));
-  const int m0 = int(floor(l));
-  const float t = l - float(m0);
+  int m0;
+  float t;
+  vt_mip_pair(lod, m0, t);
   const vec4 a = vt_sample_mip(ti, tf, m0);
-  if (t <= 0.0 || m0 + 1 >= VT.mip_count) return a;
+  if (t <= 0.0) return a;
   return mix(a, vt_sample_mip(ti, tf, m0 + 1), t);
+}
+
+// Anisotropic, one mip: one page lookup, then `taps` bilinear taps inside that slot along
+// `axis` (level-0 texels; the taps sit at (i + 1/2)/taps - 1/2 of it, i = 0 .. taps-1). The tap
+// line is clamped to reach at most B - 1/2 data-mip texels from the centre, so every bilinear
+// tap stays inside the slot's border: the footprint never crosses into a page it did not look
+// up. vt_footprint() with taps <= B never needs the clamp at the wanted mip (docs/renderer.md).
+vec4 vt_sample_aniso_mip(i64vec2 ti, vec2 tf, int mip, vec2 axis, int taps) {
+  const VtLookup l = vt_lookup(ti, tf, mip);
+  if (!l.valid) return vec4(1.0, 0.0, 1.0, 1.0);
+  if (VT.debug_view == TVT_VT_VIEW_DATA_MIP) return tvt_mip_colour(l.data_mip);
+  if (taps <= 1) return vt_fetch(l.slot, l.local);
+  vec2 a = axis * exp2(-float(l.data_mip));  // data-mip texels
+  const float reach = length(a) * float(taps - 1) / float(2 * taps);  // farthest tap from the centre
+  const float limit = float(VT.border_texels) - 0.5;
+  if (reach > limit) a *= limit / reach;
+  vec4 sum = vec4(0.0);
+  for (int i = 0; i < taps; ++i) sum += vt_fetch(l.slot, l.local + a * ((float(i) + 0.5) / float(taps) - 0.5));
+  return sum / float(taps);
+}
+
+// Anisotropic trilinear: vt_sample_aniso_mip() on the two mips of fp.lod, blended.
+vec4 vt_sample_aniso(i64vec2 ti, vec2 tf, VtFootprint fp) {
+  int m0;
+  float t;
+  vt_mip_pair(fp.lod, m0, t);
+  const vec4 a = vt_sample_aniso_mip(ti, tf, m0, fp.axis, fp.taps);
+  if (t <= 0.0) return a;
+  return mix(a, vt_sample_aniso_mip(ti, tf, m0 + 1, fp.axis, fp.taps), t);
+}
+
+// Feedback texel naming the page a sample at `lod` wants (vt_lod.glsl).
+uvec2 vt_feedback_texel(i64vec2 ti, float lod) {
+  return tvt_feedback_page(ti, lod, VT.mip_count, VT.log2_vt, VT.log2_page);
 }
 
 #endif

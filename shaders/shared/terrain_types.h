@@ -22,13 +22,16 @@ TVT_CONST uint TVT_BIND_TERRAIN_COMPOSE_PARAMS = 7u;     // storage TvtComposePa
 TVT_CONST uint TVT_BIND_TERRAIN_MATERIAL_TEXELS = 8u;    // storage uint[]
 TVT_CONST uint TVT_BIND_TERRAIN_META_TEXELS = 9u;        // storage uint[]
 TVT_CONST uint TVT_BIND_TERRAIN_WEIGHTS = 10u;           // storage float[]
+// Plain-texture mode (terrain_plain.frag: one ordinary mip-mapped texture over the whole
+// terrain, the baseline a VT is measured against) adds, fragment stage:
+TVT_CONST uint TVT_BIND_TERRAIN_PLAIN = 11u;             // sampler2DArray (layer 0), trilinear
 TVT_CONST uint TVT_TERRAIN_ATTR_GRID = 0u;     // vertex attribute: uvec4 (i, j, skirt, 0), R16G16B16A16_UINT
 TVT_CONST uint TVT_HF_FRAC_BITS = 8u;          // heightfield coordinates in 1/256 heightfield texels
 
 // One frame (std140; written with vkCmdUpdateBuffer by TerrainRenderer::record).
 // Coordinates: the camera's level-0 VT texel `anchor` is the integer origin of everything
 // the GPU sees; positions are camera-relative metres, texel coordinates anchor-relative floats.
-struct TvtTerrainFrame {   // 192 bytes
+struct TvtTerrainFrame {   // 208 bytes
   mat4 clip_from_relative; // reverse-Z projection * view rotation; input: camera-relative metres
   vec4 sun;                // xyz: unit direction toward the sun (world), w: sun intensity
   vec4 sun_color;          // rgb: sun colour (linear), a: ambient term
@@ -39,10 +42,16 @@ struct TvtTerrainFrame {   // 192 bytes
   uvec4 hf;                // x, y: heightfield width, height; z: log2 V; w: 0
   int64_t anchor_x;        // camera's level-0 VT texel (floor of camera position / metres per texel)
   int64_t anchor_y;
+  uvec4 sampling;          // x: plain mode: log2 of level-0 texels per plain texel; y: VT: most
+                           // anisotropic taps per mip (1: isotropic); z: plain mode: log2 of
+                           // the plain texture's size in texels; w: 0
 };
 
 // Where the terrain pass writes feedback: one rotating pixel of every divisor x divisor block
-// writes the page id its LOD wants into feedback texel (x / divisor, y / divisor).
+// writes the page id its LOD wants into feedback texel (x / divisor, y / divisor). The separate
+// feedback pass (terrain_feedback.frag) renders at 1/divisor resolution with its viewport
+// shifted so that texel (x, y) sees the scene point of full-resolution pixel
+// (x * divisor + offset_x, y * divisor + offset_y): both variants report the same pixels.
 struct TvtFeedbackWrite {  // 32 bytes (std140)
   uint width;              // feedback texels per row (ceil(view width / divisor))
   uint height;
@@ -92,8 +101,9 @@ TVT_FN ivec2 tvt_vertex_rel_texel(ivec2 rel_texel, uint i, uint j, uint quad_tex
 TVT_END
 
 #ifdef __cplusplus
-static_assert(sizeof(tvt::gpu::TvtTerrainFrame) == 192);
+static_assert(sizeof(tvt::gpu::TvtTerrainFrame) == 208);
 static_assert(offsetof(tvt::gpu::TvtTerrainFrame, anchor_x) == 176);
+static_assert(offsetof(tvt::gpu::TvtTerrainFrame, sampling) == 192);
 static_assert(sizeof(tvt::gpu::TvtTerrainDraw) == 16);
 #endif
 #endif
