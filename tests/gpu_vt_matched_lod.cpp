@@ -1,0 +1,138 @@
+// The VT image against direct splatting at matched LOD (issue: PSNR >= 45 dB, no pixel along
+// page borders off by more than 8/255): the cache converges for one camera, then the same
+// frame is rendered through the VT (with a probe attachment: LOD, data mips, distance to the
+// page payload edge) and through the direct-splat pass that composes the texel centres of the
+// mips the VT LOD selects and filters them as the VT sampler does.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+
+#include "compose/packed_scene.h"
+#include "compose/scene.h"
+#include "render/flythrough.h"
+#include "render/terrain_renderer.h"
+#include "render/vt_frame_driver.h"
+#include "support/gpu_test.h"
+
+using namespace tvt;
+
+namespace {
+
+struct Probe {
+  float lod, fine_mip, coarse_mip, edge;
+};
+
+std::vector<Probe> read_probe(const TerrainRenderer& r) {
+  const std::vector<uint8_t> bytes = r.target().read_color(1);
+  std::vector<Probe> p(bytes.size() / sizeof(Probe));
+  std::memcpy(p.data(), bytes.data(), p.size() * sizeof(Probe));
+  return p;
+}
+
+struct Diff {
+  double se = 0;
+  size_t channels = 0;
+  int worst = 0;
+  void add(const uint8_t* a, const uint8_t* b) {
+    for (int c = 0; c < 3; ++c) {
+      const int d = int(a[c]) - int(b[c]);
+      se += double(d * d);
+      worst = std::max(worst, std::abs(d));
+      ++channels;
+    }
+  }
+  double psnr() const { return se == 0 ? 99.0 : 10.0 * std::log10(255.0 * 255.0 * double(channels) / se); }
+};
+
+class GpuVtMatchedLod : public GpuTest {};
+
+}  // namespace
+
+TEST_F(GpuVtMatchedLod, VtEqualsDirectSplattingAtMatchedLod) {
+  auto assets = load_scene_assets(default_scene());
+  ASSERT_TRUE(assets.ok());
+  auto packed = pack_scene(assets.value(), options_for(Method::FbpbDpt));
+  ASSERT_TRUE(packed.ok());
+  VtSystemOptions vo;
+  vo.cache_slots = 512;
+  vo.page_budget = 64;
+  auto vt = VtSystem::create(ctx(), packed.value(), vo);
+  ASSERT_TRUE(vt.ok()) << vt.error().message;
+  VtSystem& v = *vt.value();
+
+  const uint32_t w = 256, h = 144;
+  TerrainRendererOptions base;
+  base.width = w;
+  base.height = h;
+  TerrainVtInputs vi{&v.info_buffer(), &v.entry_buffer(), &v.cache(), v.sampler(), 2};
+  TerrainRendererOptions writer_o = base;
+  writer_o.vt = vi;
+  auto writer = TerrainRenderer::create(ctx(), assets.value(), writer_o);
+  ASSERT_TRUE(writer.ok()) << writer.error().message;
+  TerrainRendererOptions probe_o = base;
+  probe_o.vt = vi;
+  probe_o.vt->feedback = FeedbackMode::None;
+  probe_o.vt->probe_output = true;
+  auto probe = TerrainRenderer::create(ctx(), assets.value(), probe_o);
+  ASSERT_TRUE(probe.ok()) << probe.error().message;
+  auto composer = GpuComposer::create(ctx(), packed.value(), 1);
+  ASSERT_TRUE(composer.ok());
+  TerrainRendererOptions direct_o = base;
+  direct_o.direct = TerrainDirectInputs{composer.value().get(), true};
+  auto matched = TerrainRenderer::create(ctx(), assets.value(), direct_o);
+  ASSERT_TRUE(matched.ok()) << matched.error().message;
+  direct_o.direct->matched_lod = false;
+  auto continuous = TerrainRenderer::create(ctx(), assets.value(), direct_o);
+  ASSERT_TRUE(continuous.ok());
+
+  // A low pass over varied terrain: mips 0 ... 6 on screen, many page borders.
+  const CameraPath path = flythrough_path(assets.value(), writer.value()->mesh());
+  const Camera cam = path.camera_at(path.start_time() + 0.5);
+  auto driver = VtFrameDriver::create(ctx(), v, *writer.value());
+  ASSERT_TRUE(driver.ok()) << driver.error().message;
+  const VtConvergence conv = driver.value()->converge(cam, 60);
+  ASSERT_TRUE(conv.converged) << "no convergence in " << conv.frames << " frames";
+  EXPECT_EQ(v.stats().residency.mip_bias, 0u);  // the matched pass assumes no bias
+
+  const ImageRGBA8 vt_img = probe.value()->render(cam);
+  const std::vector<Probe> pr = read_probe(*probe.value());
+  const ImageRGBA8 direct_img = matched.value()->render(cam);
+  const ImageRGBA8 continuous_img = continuous.value()->render(cam);
+
+  Diff frame, terrain, border, cont;
+  size_t terrain_px = 0, mismatched_mips = 0;
+  int mip_lo = 99, mip_hi = -1;
+  for (uint32_t y = 0; y < h; ++y)
+    for (uint32_t x = 0; x < w; ++x) {
+      const Probe& p = pr[y * w + x];
+      const uint8_t* a = vt_img.at(int(x), int(y));
+      const uint8_t* b = direct_img.at(int(x), int(y));
+      frame.add(a, b);
+      cont.add(a, continuous_img.at(int(x), int(y)));
+      if (p.lod < 0.0f) continue;  // sky
+      ++terrain_px;
+      terrain.add(a, b);
+      // Matched: the VT read the mips its LOD wants (no fallback to an ancestor).
+      const int want = std::min(int(std::floor(p.lod)), int(assets->desc.vt.mip_count()) - 1);
+      mismatched_mips += int(p.fine_mip) != want;
+      mip_lo = std::min(mip_lo, want);
+      mip_hi = std::max(mip_hi, want);
+      if (p.edge < 1.0f) border.add(a, b);  // within a texel of the payload edge: taps read the border or next to it
+    }
+  std::fprintf(stderr,
+               "VT vs matched direct: %.2f dB frame, %.2f dB terrain (%zu px, mips %d..%d), worst %d/255; border: %zu px, "
+               "worst %d/255, %.2f dB; VT vs continuous direct %.2f dB\n",
+               frame.psnr(), terrain.psnr(), terrain_px, mip_lo, mip_hi, terrain.worst, border.channels / 3, border.worst,
+               border.psnr(), cont.psnr());
+  RecordProperty("vt_vs_matched_direct_psnr_db", std::to_string(terrain.psnr()));
+  RecordProperty("border_worst", std::to_string(border.worst));
+  ASSERT_GT(terrain_px, size_t(w * h / 2));
+  EXPECT_EQ(mismatched_mips, 0u);
+  EXPECT_GE(mip_hi - mip_lo, 3);  // the frame spans several mips (trilinear between them)
+  ASSERT_GT(border.channels / 3, 300u);
+  EXPECT_GE(frame.psnr(), 45.0);
+  EXPECT_GE(terrain.psnr(), 45.0);
+  EXPECT_LE(border.worst, 8);
+}
