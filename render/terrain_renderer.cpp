@@ -82,6 +82,7 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
     pd.fragment_spirv = shaders::terrain_plain_frag();
   else
     pd.fragment_spirv = options.texel_output ? shaders::terrain_texel_frag() : shaders::terrain_frag();
+  if (options.vt) pd.fragment_constants = {options.vt->max_anisotropy};  // TVT_TERRAIN_SPEC_MAX_ANISOTROPY
   pd.vertex_bindings = {{0, sizeof(TerrainVertex), VK_VERTEX_INPUT_RATE_VERTEX}};
   pd.vertex_attributes = {{gpu::TVT_TERRAIN_ATTR_GRID, 0, VK_FORMAT_R16G16B16A16_UINT, 0}};
   pd.bindings = {
@@ -216,8 +217,7 @@ gpu::TvtTerrainFrame TerrainRenderer::frame_constants(const Camera& camera) cons
   f.terrain = glm::vec4(float(mesh_.height_m()), float(mesh_.extent_m() / hf.width),
                         float(mesh_.extent_m() / hf.height), 0.0f);
   f.hf = glm::uvec4(uint32_t(hf.width), uint32_t(hf.height), mesh_.log2_vt(), 0u);
-  f.sampling = glm::uvec4(0u, 1u, 0u, 0u);
-  if (options_.vt) f.sampling.y = options_.vt->max_anisotropy;
+  f.sampling = glm::uvec4(0u);
   if (options_.plain) {
     f.sampling.x = options_.plain->texture->vt_mip();
     f.sampling.z = options_.plain->texture->log2_size();

@@ -637,12 +637,22 @@ GraphicsPipeline Context::create_graphics_pipeline(const GraphicsPipelineDesc& d
 
   const VkShaderModule vs = create_shader_module(desc.vertex_spirv);
   const VkShaderModule fs = create_shader_module(desc.fragment_spirv);
+  // Fragment specialization constants: constant_id i = desc.fragment_constants[i] (32 bits each).
+  std::vector<VkSpecializationMapEntry> spec_entries;
+  for (uint32_t i = 0; i < desc.fragment_constants.size(); ++i)
+    spec_entries.push_back({i, i * uint32_t(sizeof(uint32_t)), sizeof(uint32_t)});
+  VkSpecializationInfo spec{};
+  spec.mapEntryCount = uint32_t(spec_entries.size());
+  spec.pMapEntries = spec_entries.data();
+  spec.dataSize = desc.fragment_constants.size() * sizeof(uint32_t);
+  spec.pData = desc.fragment_constants.data();
   VkPipelineShaderStageCreateInfo stages[2];
   for (int i = 0; i < 2; ++i) {
     stages[i] = init<VkPipelineShaderStageCreateInfo>(VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO);
     stages[i].stage = i == 0 ? VK_SHADER_STAGE_VERTEX_BIT : VK_SHADER_STAGE_FRAGMENT_BIT;
     stages[i].module = i == 0 ? vs : fs;
     stages[i].pName = "main";
+    if (i == 1 && !spec_entries.empty()) stages[i].pSpecializationInfo = &spec;
   }
 
   auto vi = init<VkPipelineVertexInputStateCreateInfo>(VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO);

@@ -139,6 +139,9 @@ struct GraphicsBinding {
 struct GraphicsPipelineDesc {
   std::span<const uint32_t> vertex_spirv;
   std::span<const uint32_t> fragment_spirv;
+  // Specialization constants of the fragment stage: constant_id i takes fragment_constants[i]
+  // (32-bit int/uint/bool/float bits). Lets one shader compile to variants without dead branches.
+  std::vector<uint32_t> fragment_constants;
   std::vector<VkVertexInputBindingDescription> vertex_bindings;
   std::vector<VkVertexInputAttributeDescription> vertex_attributes;
   std::vector<GraphicsBinding> bindings;            // descriptor set 0

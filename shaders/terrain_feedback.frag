@@ -13,6 +13,8 @@ layout(std140, set = 0, binding = TVT_BIND_TERRAIN_FRAME) uniform FrameBuf { Tvt
 layout(std430, set = 0, binding = TVT_BIND_TERRAIN_VT_INFO) readonly buffer VtInfoBuf { TvtVtInfo VT; };
 layout(std140, set = 0, binding = TVT_BIND_TERRAIN_FEEDBACK_PARAMS) uniform FeedbackParams { TvtFeedbackWrite FB; };
 
+layout(constant_id = TVT_TERRAIN_SPEC_MAX_ANISOTROPY) const int k_max_anisotropy = 1;
+
 layout(location = 0) in vec2 v_local_texel;
 layout(location = 0) out uvec2 out_page;  // feedback texel (feedback_types.h), R32G32_UINT
 
@@ -20,8 +22,8 @@ void main() {
   // One texel here spans N full-resolution pixels (the viewport is scaled by exactly 1/N).
   const float to_full = 1.0 / float(FB.divisor);
   const VtFootprint fp = vt_footprint(dFdx(v_local_texel) * to_full, dFdy(v_local_texel) * to_full, VT.mip_bias,
-                                      int(F.sampling.y));
+                                      k_max_anisotropy);
   const vec2 whole = floor(v_local_texel);
-  const i64vec2 ti = i64vec2(F.anchor_x, F.anchor_y) + i64vec2(whole);
+  const ivec2 ti = ivec2(int(F.anchor_x), int(F.anchor_y)) + ivec2(whole);  // fits: see terrain_fragment.glsl
   out_page = tvt_feedback_page(ti, fp.lod, VT.mip_count, VT.log2_vt, VT.log2_page);
 }

@@ -53,6 +53,7 @@ struct TerrainFragment {
 layout(early_fragment_tests) in;
 #include "shared/vt_types.h"
 layout(std430, set = 0, binding = TVT_BIND_TERRAIN_VT_INFO) readonly buffer VtInfoBuf { TvtVtInfo VT; };
+layout(std430, set = 0, binding = TVT_BIND_TERRAIN_VT_INFO) readonly buffer VtInfoWords { ivec4 vt_info_words[]; };
 layout(std430, set = 0, binding = TVT_BIND_TERRAIN_VT_ENTRIES) readonly buffer VtEntryBuf { uint pt_entries[]; };
 layout(set = 0, binding = TVT_BIND_TERRAIN_VT_CACHE) uniform sampler2DArray vt_cache;
 #ifdef TVT_TERRAIN_VT_FEEDBACK
@@ -60,6 +61,7 @@ layout(std430, set = 0, binding = TVT_BIND_TERRAIN_FEEDBACK) writeonly buffer Fe
 layout(std140, set = 0, binding = TVT_BIND_TERRAIN_FEEDBACK_PARAMS) uniform FeedbackParams { TvtFeedbackWrite FB; };
 #endif
 #include "vt_sample.glsl"
+layout(constant_id = TVT_TERRAIN_SPEC_MAX_ANISOTROPY) const int k_max_anisotropy = 1;
 
 #ifdef TVT_TERRAIN_VT_PROBE
 // Distance in data-mip texels from the lookup's sample point to the nearest edge of the page
@@ -72,14 +74,14 @@ float vt_edge_distance(VtLookup l) {
 
 // Test probe (attachment 1): LOD, the data mips of the (one or two) lookups, and how close
 // their sample points come to a payload edge.
-vec4 vt_probe(i64vec2 ti, vec2 tf, float lod) {
+vec4 vt_probe(ivec2 ti, vec2 tf, float lod) {
   int m0;
   float t;
   vt_mip_pair(lod, m0, t);
-  const VtLookup a = vt_lookup(ti, tf, m0);
+  const VtLookup a = vt_lookup32(ti, tf, m0);
   float edge = vt_edge_distance(a), coarse_mip = -1.0;
   if (t > 0.0) {
-    const VtLookup b = vt_lookup(ti, tf, m0 + 1);
+    const VtLookup b = vt_lookup32(ti, tf, m0 + 1);
     edge = min(edge, vt_edge_distance(b));
     coarse_mip = b.valid ? float(b.data_mip) : -2.0;
   }
@@ -90,10 +92,12 @@ vec4 vt_probe(i64vec2 ti, vec2 tf, float lod) {
 // Albedo through the virtual texture. With main-pass feedback, one rotating pixel per N x N
 // block also reports the page its LOD wants (before any fallback to a resident ancestor).
 vec4 terrain_albedo(TerrainFragment f) {
+  // 32-bit texel: the anchor is clamped to [-V/2, 3V/2] and fragments lie on the terrain, so
+  // for V <= 2^30 both fit int32 (64-bit integer work is emulated on some devices).
   const vec2 whole = floor(f.local_texel);
-  const i64vec2 ti = f.anchor_texel + i64vec2(whole);
+  const ivec2 ti = ivec2(f.anchor_texel) + ivec2(whole);
   const vec2 tf = f.local_texel - whole;
-  const VtFootprint fp = vt_footprint(f.dtexel_dx, f.dtexel_dy, VT.mip_bias, int(F.sampling.y));
+  const VtFootprint fp = vt_footprint(f.dtexel_dx, f.dtexel_dy, VT.mip_bias, k_max_anisotropy);
 #ifdef TVT_TERRAIN_VT_FEEDBACK
   const uvec2 px = uvec2(gl_FragCoord.xy);
   if (px.x % FB.divisor == FB.offset_x && px.y % FB.divisor == FB.offset_y) {
@@ -104,7 +108,7 @@ vec4 terrain_albedo(TerrainFragment f) {
 #ifdef TVT_TERRAIN_VT_PROBE
   g_probe = vt_probe(ti, tf, fp.lod);
 #endif
-  return vec4((fp.taps > 1 ? vt_sample_aniso(ti, tf, fp) : vt_sample(ti, tf, fp.lod)).rgb, 1.0);
+  return vec4((k_max_anisotropy > 1 ? vt_sample_aniso(ti, tf, fp) : vt_sample(ti, tf, fp.lod)).rgb, 1.0);
 }
 #elif defined(TVT_TERRAIN_DIRECT)
 #include "shared/compose_types.h"

@@ -45,11 +45,11 @@ VtFootprint vt_footprint(vec2 dx, vec2 dy, float bias, int max_taps) {
 
 // Feedback texel (feedback_types.h) naming the page that a sample at `lod` wants: the finer
 // of its two mips, before any fallback to a resident ancestor. Positions outside the terrain
-// clamp to its edge. Needs GL_EXT_shader_explicit_arithmetic_types_int64.
-uvec2 tvt_feedback_page(i64vec2 ti, float lod, int mip_count, int log2_vt, int log2_page) {
+// clamp to its edge. 32-bit: texel coordinates on a terrain of V <= 2^30 fit int32.
+uvec2 tvt_feedback_page(ivec2 ti, float lod, int mip_count, int log2_vt, int log2_page) {
   const int m = clamp(int(floor(lod)), 0, mip_count - 1);
-  const i64vec2 clamped = clamp(ti, i64vec2(0), i64vec2((int64_t(1) << int64_t(log2_vt)) - int64_t(1)));
-  const uvec2 page = uvec2(clamped >> int64_t(log2_page + m));
+  const ivec2 clamped = clamp(ti, ivec2(0), ivec2((1 << log2_vt) - 1));
+  const uvec2 page = uvec2(clamped >> (log2_page + m));
   return uvec2(tvt_feedback_word0(uint(m), page.x), tvt_feedback_word1(page.y));
 }
 

@@ -1,5 +1,9 @@
 // Page-table lookup (DESIGN §5). The includer declares
 //   TvtVtInfo VT;  uint pt_entries[];
+// and, as a second block on VT's binding, ivec4 vt_info_words[] (the same bytes: mip m's
+// window TvtVtMip is word TVT_VT_INFO_MIP_WORD + m, vt_types.h): one 16-byte load per window
+// instead of four 4-byte loads (-15 % of the VT pass on lavapipe, where every buffer load is a
+// per-lane gather);
 // and enables GL_EXT_shader_explicit_arithmetic_types_int64.
 // Positions are level-0 texels as an exact integer part `ti` plus a float fraction `tf`
 // (|tf| small): no whole-terrain float coordinate anywhere (DESIGN §3).
@@ -14,8 +18,10 @@ struct VtLookup {
   vec2 local;    // texel coordinate inside the slot, border included ([B, B+P) for the payload)
 };
 
-// The first mip >= `mip` whose window holds the position's page; one entry fetch.
-VtLookup vt_lookup(i64vec2 ti, vec2 tf, int mip) {
+// The first mip >= `mip` whose window holds the position's page; one entry fetch. Integer
+// arithmetic in 32 bits: texel coordinates of positions on the terrain (0 <= ti <= V <= 2^30)
+// fit int32, and 64-bit shifts and conversions are slow on some devices (lavapipe emulates them).
+VtLookup vt_lookup32(ivec2 ti, vec2 tf, int mip) {
   VtLookup r;
   r.valid = false;
   r.slot = 0u;
@@ -23,23 +29,30 @@ VtLookup vt_lookup(i64vec2 ti, vec2 tf, int mip) {
   r.local = vec2(0.0);
   mip = clamp(mip, 0, VT.mip_count - 1);
   for (int m = mip; m < VT.mip_count; ++m) {
-    const ivec2 page = ivec2(ti >> int64_t(VT.log2_page + m));
-    const ivec2 origin = ivec2(VT.mips[m].origin_x, VT.mips[m].origin_y);
-    const int size = VT.mips[m].size;
+    const ivec2 page = ti >> (VT.log2_page + m);
+    const ivec4 w = vt_info_words[TVT_VT_INFO_MIP_WORD + m];  // origin x, y, size, entry offset
+    const ivec2 origin = w.xy;
+    const int size = w.z;
     if (any(lessThan(page, origin)) || any(greaterThanEqual(page, origin + size))) continue;
-    const uint e = pt_entries[VT.mips[m].offset + uint((page.y & (size - 1)) * size + (page.x & (size - 1)))];
+    const uint e = pt_entries[uint(w.w) + uint((page.y & (size - 1)) * size + (page.x & (size - 1)))];
     if (!tvt_pte_valid(e)) return r;
     const int d = int(tvt_pte_mip(e));
-    const i64vec2 xi = ti >> int64_t(d);                               // texel at the data mip
-    const vec2 f = (vec2(ti - (xi << int64_t(d))) + tf) * exp2(-float(d));  // remainder, < 1 texel + tf
-    const i64vec2 pd = xi >> int64_t(VT.log2_page);
+    const ivec2 xi = ti >> d;                                          // texel at the data mip
+    const vec2 f = (vec2(ti - (xi << d)) + tf) * exp2(-float(d));      // remainder, < 1 texel + tf
     r.valid = true;
     r.slot = tvt_pte_slot(e);
     r.data_mip = d;
-    r.local = vec2(xi - (pd << int64_t(VT.log2_page))) + f + float(VT.border_texels);
+    r.local = vec2(xi & ((1 << VT.log2_page) - 1)) + f + float(VT.border_texels);
     return r;
   }
   return r;
+}
+
+// Same for any 64-bit texel coordinate: positions beyond [-2^31, 2^31) clamp (they lie outside
+// every terrain V <= 2^30 allows, where lookups clamp to the edge pages anyway).
+VtLookup vt_lookup(i64vec2 ti, vec2 tf, int mip) {
+  const i64vec2 lim = i64vec2(0x7fffffff);
+  return vt_lookup32(ivec2(clamp(ti, -lim - int64_t(1), lim)), tf, mip);
 }
 
 #endif

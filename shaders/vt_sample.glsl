@@ -1,5 +1,7 @@
 // Sampling through the virtual texture (DESIGN §5): vt_lookup.glsl plus the physical cache.
 // The includer also declares sampler2DArray vt_cache (bilinear, clamp to edge, no mips).
+// Positions: level-0 texel `ti` (int32: positions on a terrain of V <= 2^30 texels fit, see
+// vt_lookup32) plus the fraction `tf` in [0, 1).
 #ifndef TVT_VT_SAMPLE_GLSL
 #define TVT_VT_SAMPLE_GLSL
 #include "vt_lookup.glsl"
@@ -10,8 +12,8 @@ vec4 vt_fetch(uint slot, vec2 local) {
   return textureLod(vt_cache, vec3(local / float(VT.slot_texels), float(slot)), 0.0);
 }
 
-vec4 vt_sample_mip(i64vec2 ti, vec2 tf, int mip) {
-  const VtLookup l = vt_lookup(ti, tf, mip);
+vec4 vt_sample_mip(ivec2 ti, vec2 tf, int mip) {
+  const VtLookup l = vt_lookup32(ti, tf, mip);
   if (!l.valid) return vec4(1.0, 0.0, 1.0, 1.0);  // no data at all: visible, never NaN
   if (VT.debug_view == TVT_VT_VIEW_DATA_MIP) return tvt_mip_colour(l.data_mip);
   return vt_fetch(l.slot, l.local);
@@ -28,7 +30,7 @@ void vt_mip_pair(float lod, out int m0, out float t) {
 }
 
 // Trilinear: bilinear inside the border of two pages, blended across mips (two lookups).
-vec4 vt_sample(i64vec2 ti, vec2 tf, float lod) {
+vec4 vt_sample(ivec2 ti, vec2 tf, float lod) {
   int m0;
   float t;
   vt_mip_pair(lod, m0, t);
@@ -42,8 +44,8 @@ vec4 vt_sample(i64vec2 ti, vec2 tf, float lod) {
 // line is clamped to reach at most B - 1/2 data-mip texels from the centre, so every bilinear
 // tap stays inside the slot's border: the footprint never crosses into a page it did not look
 // up. vt_footprint() with taps <= B never needs the clamp at the wanted mip (docs/renderer.md).
-vec4 vt_sample_aniso_mip(i64vec2 ti, vec2 tf, int mip, vec2 axis, int taps) {
-  const VtLookup l = vt_lookup(ti, tf, mip);
+vec4 vt_sample_aniso_mip(ivec2 ti, vec2 tf, int mip, vec2 axis, int taps) {
+  const VtLookup l = vt_lookup32(ti, tf, mip);
   if (!l.valid) return vec4(1.0, 0.0, 1.0, 1.0);
   if (VT.debug_view == TVT_VT_VIEW_DATA_MIP) return tvt_mip_colour(l.data_mip);
   if (taps <= 1) return vt_fetch(l.slot, l.local);
@@ -57,7 +59,7 @@ vec4 vt_sample_aniso_mip(i64vec2 ti, vec2 tf, int mip, vec2 axis, int taps) {
 }
 
 // Anisotropic trilinear: vt_sample_aniso_mip() on the two mips of fp.lod, blended.
-vec4 vt_sample_aniso(i64vec2 ti, vec2 tf, VtFootprint fp) {
+vec4 vt_sample_aniso(ivec2 ti, vec2 tf, VtFootprint fp) {
   int m0;
   float t;
   vt_mip_pair(fp.lod, m0, t);
@@ -67,7 +69,7 @@ vec4 vt_sample_aniso(i64vec2 ti, vec2 tf, VtFootprint fp) {
 }
 
 // Feedback texel naming the page a sample at `lod` wants (vt_lod.glsl).
-uvec2 vt_feedback_texel(i64vec2 ti, float lod) {
+uvec2 vt_feedback_texel(ivec2 ti, float lod) {
   return tvt_feedback_page(ti, lod, VT.mip_count, VT.log2_vt, VT.log2_page);
 }
 

@@ -25,6 +25,10 @@ TVT_CONST uint TVT_BIND_TERRAIN_WEIGHTS = 10u;           // storage float[]
 // Plain-texture mode (terrain_plain.frag: one ordinary mip-mapped texture over the whole
 // terrain, the baseline a VT is measured against) adds, fragment stage:
 TVT_CONST uint TVT_BIND_TERRAIN_PLAIN = 11u;             // sampler2DArray (layer 0), trilinear
+// Fragment specialization constant (vk::GraphicsPipelineDesc::fragment_constants) of the VT
+// passes: most anisotropic taps per mip, 1 = isotropic (a constant, so the isotropic pipeline
+// carries no dead anisotropic branch: some devices, lavapipe among them, run both sides).
+#define TVT_TERRAIN_SPEC_MAX_ANISOTROPY 0
 TVT_CONST uint TVT_TERRAIN_ATTR_GRID = 0u;     // vertex attribute: uvec4 (i, j, skirt, 0), R16G16B16A16_UINT
 TVT_CONST uint TVT_HF_FRAC_BITS = 8u;          // heightfield coordinates in 1/256 heightfield texels
 
@@ -42,9 +46,8 @@ struct TvtTerrainFrame {   // 208 bytes
   uvec4 hf;                // x, y: heightfield width, height; z: log2 V; w: 0
   int64_t anchor_x;        // camera's level-0 VT texel (floor of camera position / metres per texel)
   int64_t anchor_y;
-  uvec4 sampling;          // x: plain mode: log2 of level-0 texels per plain texel; y: VT: most
-                           // anisotropic taps per mip (1: isotropic); z: plain mode: log2 of
-                           // the plain texture's size in texels; w: 0
+  uvec4 sampling;          // plain mode: x: log2 of level-0 texels per plain texel; z: log2 of
+                           // the plain texture's size in texels; y, w: 0
 };
 
 // Where the terrain pass writes feedback: one rotating pixel of every divisor x divisor block

@@ -23,6 +23,10 @@ struct TvtVtMip {    // one mip's page-table window, in pages of that mip (vt/pa
   uint offset;       // first entry of this mip in the flat entry buffer
 };
 
+// TvtVtInfo::mips[m] read as one ivec4 (origin x, y, size, offset): vt_lookup.glsl loads
+// word TVT_VT_INFO_MIP_WORD + m of the same buffer viewed as ivec4[].
+TVT_CONST int TVT_VT_INFO_MIP_WORD = 2;
+
 struct TvtVtInfo {
   int log2_vt;       // V = 2^log2_vt level-0 texels
   int log2_page;     // P = 2^log2_page payload texels per page
@@ -40,6 +44,7 @@ TVT_END
 #ifdef __cplusplus
 static_assert(sizeof(tvt::gpu::TvtVtMip) == 16);
 static_assert(offsetof(tvt::gpu::TvtVtInfo, mips) == 32);
+static_assert(offsetof(tvt::gpu::TvtVtInfo, mips) == 16 * tvt::gpu::TVT_VT_INFO_MIP_WORD);
 static_assert(sizeof(tvt::gpu::TvtVtInfo) == 32 + 32 * 16);
 #endif
 #endif
