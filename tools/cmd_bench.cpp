@@ -1,6 +1,7 @@
-// `terravt bench compose`: page-composition throughput of every method, GPU compute vs the
-// CPU reference, measured side by side in one run (speed is reported as ratios too, since
-// absolute numbers on lavapipe say little about a real GPU).
+// `terravt bench compose | mips | frame`: page-composition throughput of every method (GPU compute
+// vs the CPU reference), mip strategies against the ground truth, and the frame benchmark
+// (tools/bench_frame.cpp); measured side by side in one run, reported as ratios too, since
+// absolute numbers on lavapipe say little about a real GPU.
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -12,11 +13,9 @@
 #include "compose/packed_scene.h"
 #include "compose/reference_compositor.h"
 #include "compose/region.h"
-#include "render/flythrough.h"
 #include "render/gpu_composer.h"
-#include "render/terrain_renderer.h"
-#include "vt/page_table.h"
 #include "shaders/shared/hash.h"
+#include "tools/bench_frame.h"
 #include "tools/cli_common.h"
 #include "tools/commands.h"
 
@@ -234,118 +233,8 @@ int run_bench_mips(const BenchMipsArgs& a) {
   return 0;
 }
 
-struct BenchFrameArgs {
-  std::string scene;
-  std::string gpu_name;
-  std::vector<std::string> methods = {"blendmap", "fbpb+dpt2"};
-  uint32_t width = 320, height = 180;
-  uint32_t frames = 80;  // at 5 fps: past the default flythrough's camera cut (13 s)
-  double fps = 5.0;
-  uint32_t cache_slots = 384;
-  uint32_t page_budget = 16;
-};
-
-// Frame cost of the VT path against direct per-pixel splatting and an untextured pass, on the
-// same camera poses, plus time-to-sharp after the camera cut and VT memory against V.
-int run_bench_frame(const BenchFrameArgs& a) {
-  const char* cmd = "bench frame";
-  std::vector<Method> methods;
-  for (const std::string& m : a.methods) {
-    auto parsed = method_from_string(m);
-    if (!parsed) return fail(cmd, "--methods: unknown method '" + m + "'", 2);
-    methods.push_back(*parsed);
-  }
-  if (a.frames < 10 || a.frames > 10000) return fail(cmd, "--frames: must be between 10 and 10000", 2);
-  auto assets = load_scene_and_assets(a.scene);
-  if (!assets) return fail(cmd, assets.error().message, 2);
-  auto ctx = gpu_context(a.gpu_name);
-  if (!ctx) return fail(cmd, ctx.error().message, 1);
-  vk::Context& g = *ctx.value();
-  std::printf("terravt bench frame: %ux%u, %u frames of the default flythrough at %.0f fps, cache %u pages, budget %u, device %s\n\n",
-              a.width, a.height, a.frames, a.fps, a.cache_slots, a.page_budget, g.device_name().c_str());
-
-  // Untextured pass (analytic colour ramp): the floor of what any texturing costs.
-  TerrainRendererOptions plain_o;
-  plain_o.width = a.width;
-  plain_o.height = a.height;
-  auto plain = TerrainRenderer::create(g, assets.value(), plain_o);
-  if (!plain) return fail(cmd, plain.error().message, 1);
-  const CameraPath path = flythrough_path(assets.value(), plain.value()->mesh());
-  auto time_pass = [&](TerrainRenderer& r) {
-    std::vector<double> ms;
-    for (uint32_t f = 0; f < a.frames; f += 4) {
-      const Camera cam = path.camera_at(std::min(path.start_time() + f / a.fps, path.end_time()));
-      const auto t0 = std::chrono::steady_clock::now();
-      g.run_commands([&](VkCommandBuffer c) { r.record(c, cam); });
-      ms.push_back(seconds_since(t0) * 1000.0);
-    }
-    std::sort(ms.begin(), ms.end());
-    return ms[ms.size() / 2];
-  };
-  time_pass(*plain.value());  // warm-up
-  const double plain_ms = time_pass(*plain.value());
-
-  std::printf("%-10s %14s %16s %12s %10s %10s %14s\n", "method", "VT steady ms", "VT+production ms", "direct ms",
-              "VT/direct", "VT/plain", "time-to-sharp");
-  for (Method m : methods) {
-    FlythroughOptions fo;
-    fo.method = m;
-    fo.frames = a.frames;
-    fo.width = a.width;
-    fo.height = a.height;
-    fo.fps = a.fps;
-    fo.vt.cache_slots = a.cache_slots;
-    fo.vt.page_budget = a.page_budget;
-    std::vector<double> steady, all;
-    int cut_frame = -1, sharp_after = -1;
-    auto run = run_flythrough(g, assets.value(), fo, [&](const FlythroughFrame& f, const auto&) {
-      all.push_back(f.gpu_ms);
-      if (f.vt.composed == 0 && f.index > 5) steady.push_back(f.gpu_ms);
-      if (f.cut) cut_frame = int(f.index);
-      // Sharp: the feedback already comes from after the cut, and nothing is requested (every
-      // page the view wants, at its wanted mip, is resident).
-      const bool post_cut_feedback =
-          cut_frame >= 0 && f.feedback_frames_late > 0 && f.index >= uint32_t(cut_frame) + f.feedback_frames_late;
-      if (post_cut_feedback && sharp_after < 0 && f.vt.residency.requested == 0) sharp_after = int(f.index) - cut_frame;
-      return true;
-    });
-    if (!run) return fail(cmd, run.error().message, 1);
-    auto median = [](std::vector<double> v) {
-      if (v.empty()) return 0.0;
-      std::sort(v.begin(), v.end());
-      return v[v.size() / 2];
-    };
-    auto packed = pack_scene(assets.value(), options_for(m));
-    if (!packed) return fail(cmd, packed.error().message, 2);
-    auto composer = GpuComposer::create(g, packed.value(), 1);
-    if (!composer) return fail(cmd, composer.error().message, 1);
-    TerrainRendererOptions direct_o = plain_o;
-    direct_o.direct = TerrainDirectInputs{composer.value().get()};
-    auto direct = TerrainRenderer::create(g, assets.value(), direct_o);
-    if (!direct) return fail(cmd, direct.error().message, 1);
-    const double direct_ms = time_pass(*direct.value());
-    const double vt_ms = median(steady);
-    const std::string sharp = cut_frame < 0 ? "no cut" : (sharp_after < 0 ? "not reached" : std::to_string(sharp_after) + " frames");
-    std::printf("%-10s %14.1f %16.1f %12.1f %9.2fx %9.2fx %14s\n", std::string(to_string(m)).c_str(), vt_ms, median(all),
-                direct_ms, vt_ms / direct_ms, vt_ms / plain_ms, sharp.c_str());
-  }
-  std::printf("untextured pass: %.1f ms per frame (median)\n\n", plain_ms);
-
-  std::printf("VT memory against V (page table W = 128, cache of %u pages of %ux%u RGBA8):\n", a.cache_slots,
-              assets->desc.vt.slot_texels(), assets->desc.vt.slot_texels());
-  for (uint32_t log2v : {14u, 16u, 20u, 24u}) {
-    VtConfig vt = assets->desc.vt;
-    vt.log2_size = log2v;
-    const PageTable table(vt, PageTableOptions{128});
-    const double cache_mb = double(a.cache_slots) * vt.slot_texels() * vt.slot_texels() * 4 / 1048576.0;
-    std::printf("  V = 2^%-2u  page table %8.3f MB   cache %6.1f MB   total %6.1f MB\n", log2v,
-                double(table.memory_bytes()) / 1048576.0, cache_mb, double(table.memory_bytes()) / 1048576.0 + cache_mb);
-  }
-  return 0;
-}
-
 const CommandRegistrar k_register{
-    "bench", "Benchmarks: compose (throughput per method), mips (mip strategies vs ground truth), frame (VT vs direct)", 90, [](CLI::App& app) -> RunFn {
+    "bench", "Benchmarks: compose (throughput per method), mips (mip strategies vs ground truth), frame (VT vs plain/direct)", 90, [](CLI::App& app) -> RunFn {
       app.require_subcommand(1);
       auto a = std::make_shared<BenchComposeArgs>();
       CLI::App* c = app.add_subcommand("compose", "Pages/s and Mtexel/s of every method, GPU vs CPU reference");
@@ -366,15 +255,24 @@ const CommandRegistrar k_register{
       mc->add_option("--repeats", m->repeats, "Interleaved timing rounds")->capture_default_str();
       mc->add_option("--gpu", m->gpu_name, "Vulkan device name substring or index");
       auto fr = std::make_shared<BenchFrameArgs>();
-      CLI::App* fc = app.add_subcommand("frame", "VT frame cost vs direct splatting and an untextured pass; time-to-sharp; memory vs V");
+      CLI::App* fc = app.add_subcommand(
+          "frame", "VT frame cost vs plain texture, direct splatting and an untextured pass; feedback variants; "
+                   "anisotropy; time-to-sharp; memory vs V");
       fc->add_option("--scene", fr->scene, "Scene JSON file (default: the built-in scene)")->check(CLI::ExistingFile);
       fc->add_option("--methods", fr->methods, "Methods")->delimiter(',');
       fc->add_option("--width", fr->width, "Image width")->capture_default_str();
       fc->add_option("--height", fr->height, "Image height")->capture_default_str();
       fc->add_option("--frames", fr->frames, "Frames of the flythrough")->capture_default_str();
       fc->add_option("--fps", fr->fps, "Camera path frames per second")->capture_default_str();
-      fc->add_option("--cache-slots", fr->cache_slots, "Physical cache pages")->capture_default_str();
+      fc->add_option("--cache-slots", fr->cache_slots, "Physical cache pages of the flythrough")->capture_default_str();
       fc->add_option("--page-budget", fr->page_budget, "Pages composed per frame")->capture_default_str();
+      fc->add_option("--feedback-divisor", fr->feedback_divisor, "N: feedback at 1/N resolution")->capture_default_str();
+      fc->add_option("--plain-log2", fr->plain_log2, "Plain texture size: 2^n texels per side")->capture_default_str();
+      fc->add_option("--poses", fr->poses, "Static poses of the steady-state comparison")->capture_default_str();
+      fc->add_option("--rounds", fr->rounds, "Timings per pass and pose (fastest counts)")->capture_default_str();
+      fc->add_option("--anisotropy", fr->anisotropy, "Taps of the anisotropic VT variant")->capture_default_str();
+      fc->add_option("--json", fr->json_out, "Also write the figures as JSON");
+      fc->add_flag("--static-only", fr->static_only, "Only the steady-state comparison (no flythrough loops)");
       fc->add_option("--gpu", fr->gpu_name, "Vulkan device name substring or index");
       return [a, c, m, mc, fr, fc] {
         if (fc->parsed()) return run_bench_frame(*fr);

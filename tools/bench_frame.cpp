@@ -1,0 +1,343 @@
+// `terravt bench frame` (see bench_frame.h). Two measurements per method, side by side:
+//
+// 1. Steady state on static poses, interleaved: one VtSystem, converged for each pose (by an
+//    anisotropic writer, whose feedback asks for the finest pages any variant samples), then
+//    every pass renders the pose `rounds` times in turn and keeps its fastest; figures are
+//    medians over the poses, ratios medians of the per-pose ratios. Passes: plain texture,
+//    VT (main-pass feedback, as it runs), VT without feedback, VT + separate feedback pass, VT
+//    anisotropic, direct splatting, untextured. Wall clock of submit + wait per pass.
+// 2. The flythrough loop (render/flythrough.h) with each feedback variant: steady frames
+//    (nothing composed), all frames (page production included), time-to-sharp after the cut,
+//    feedback CPU time per frame.
+#include "tools/bench_frame.h"
+
+#include <nlohmann/json.hpp>
+
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <functional>
+#include <memory>
+
+#include "compose/packed_scene.h"
+#include "render/feedback_compactor.h"
+#include "render/flythrough.h"
+#include "render/plain_texture.h"
+#include "render/terrain_renderer.h"
+#include "render/vt_frame_driver.h"
+#include "tools/cli_common.h"
+#include "vt/page_table.h"
+
+namespace tvt::cli {
+namespace {
+
+// Process CPU time (every thread: on a CPU device such as lavapipe that includes the
+// rasteriser's worker threads), milliseconds.
+double process_cpu_ms() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return (double(u.ru_utime.tv_sec) + double(u.ru_stime.tv_sec)) * 1e3 +
+         (double(u.ru_utime.tv_usec) + double(u.ru_stime.tv_usec)) * 1e-3;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+// The passes of the static comparison, in timing order.
+enum Pass { kPlain, kVt, kVtNoFeedback, kVtSeparate, kVtAniso, kDirect, kUntextured, kPassCount };
+constexpr const char* k_pass_names[kPassCount] = {"plain", "vt", "vt_no_feedback", "vt_separate_feedback",
+                                                  "vt_aniso", "direct", "untextured"};
+
+struct StaticResult {
+  std::vector<double> ms[kPassCount];  // per pose: fastest of the rounds
+  double compaction_ms = 0;            // GPU feedback compaction, per frame
+  uint32_t unconverged_poses = 0;
+  uint32_t converge_frames = 0;
+  double pass(Pass p) const { return median(ms[p]); }
+  double ratio(Pass a, Pass b) const {
+    std::vector<double> r;
+    for (size_t i = 0; i < ms[a].size(); ++i) r.push_back(ms[a][i] / ms[b][i]);
+    return median(r);
+  }
+  double difference(Pass a, Pass b) const {
+    std::vector<double> d;
+    for (size_t i = 0; i < ms[a].size(); ++i) d.push_back(ms[a][i] - ms[b][i]);
+    return median(d);
+  }
+};
+
+struct LoopResult {
+  double steady_ms = 0, all_ms = 0, feedback_cpu_ms = 0, select_ms = 0;
+  int time_to_sharp = -1;  // frames after the cut; -1 not reached
+  bool cut = false;
+  size_t steady_frames = 0;
+};
+
+Result<StaticResult> measure_static(vk::Context& g, const SceneAssets& assets, Method method, const PlainTexture& plain,
+                                    const BenchFrameArgs& a) {
+  auto packed = pack_scene(assets, options_for(method));
+  if (!packed) return packed.error();
+  VtSystemOptions vo;
+  vo.cache_slots = std::max(a.cache_slots, 1024u);  // anisotropic poses want more pages than the loop's cache
+  vo.page_budget = 64;
+  auto vt = VtSystem::create(g, packed.value(), vo);
+  if (!vt) return vt.error();
+  VtSystem& v = *vt.value();
+  auto composer = GpuComposer::create(g, packed.value(), 1);
+  if (!composer) return composer.error();
+
+  TerrainRendererOptions base;
+  base.width = a.width;
+  base.height = a.height;
+  auto vt_pass = [&](FeedbackMode mode, uint32_t aniso) {
+    TerrainRendererOptions o = base;
+    o.vt = TerrainVtInputs{&v.info_buffer(), &v.entry_buffer(), &v.cache(), v.sampler(), a.feedback_divisor, mode, aniso};
+    return TerrainRenderer::create(g, assets, o);
+  };
+  std::unique_ptr<TerrainRenderer> passes[kPassCount];
+  std::vector<Result<std::unique_ptr<TerrainRenderer>>> made;
+  TerrainRendererOptions plain_o = base, direct_o = base;
+  plain_o.plain = TerrainPlainInputs{&plain};
+  direct_o.direct = TerrainDirectInputs{composer.value().get(), false};
+  made.push_back(TerrainRenderer::create(g, assets, plain_o));
+  made.push_back(vt_pass(FeedbackMode::MainPass, 1));
+  made.push_back(vt_pass(FeedbackMode::None, 1));
+  made.push_back(vt_pass(FeedbackMode::SeparatePass, 1));
+  made.push_back(vt_pass(FeedbackMode::MainPass, a.anisotropy));
+  made.push_back(TerrainRenderer::create(g, assets, direct_o));
+  made.push_back(TerrainRenderer::create(g, assets, base));
+  for (int p = 0; p < kPassCount; ++p) {
+    if (!made[size_t(p)]) return made[size_t(p)].error();
+    passes[p] = std::move(made[size_t(p)].value());
+  }
+  // Convergence: an anisotropic writer at 1/2 resolution (every pixel reports within 4 frames);
+  // its feedback asks for the finest page any timed pass samples.
+  TerrainRendererOptions conv_o = base;
+  conv_o.vt = TerrainVtInputs{&v.info_buffer(), &v.entry_buffer(), &v.cache(), v.sampler(), 2, FeedbackMode::MainPass,
+                              a.anisotropy};
+  auto converger = TerrainRenderer::create(g, assets, conv_o);
+  if (!converger) return converger.error();
+  auto driver = VtFrameDriver::create(g, v, *converger.value());
+  if (!driver) return driver.error();
+  FeedbackCompactor::Options fo;
+  fo.feedback_width = passes[kVt]->feedback_width();
+  fo.feedback_height = passes[kVt]->feedback_height();
+  auto compactor = FeedbackCompactor::create(g, fo);
+  if (!compactor) return compactor.error();
+
+  // On a CPU device the device's work is this process's CPU time: unlike wall clock it does not
+  // depend on what else runs on the machine's cores.
+  const bool cpu_device = g.properties().deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU;
+  StaticResult r;
+  const CameraPath path = flythrough_path(assets, passes[kVt]->mesh());
+  const double span = std::min(path.end_time() - path.start_time(), double(a.frames) / a.fps);
+  for (uint32_t k = 0; k < a.poses; ++k) {
+    const Camera cam = path.camera_at(path.start_time() + (k + 0.5) * span / a.poses);
+    const VtConvergence c = driver.value()->converge(cam, 80);
+    r.converge_frames += c.frames;
+    r.unconverged_poses += c.converged ? 0 : 1;
+    double best[kPassCount];
+    std::fill(std::begin(best), std::end(best), 1e300);
+    for (uint32_t round = 0; round <= a.rounds; ++round)  // round 0 warms caches up
+      for (int p = 0; p < kPassCount; ++p) {
+        const auto t0 = std::chrono::steady_clock::now();
+        const double c0 = process_cpu_ms();
+        g.run_commands([&](VkCommandBuffer cmd) { passes[p]->record(cmd, cam); });
+        const double ms = cpu_device ? process_cpu_ms() - c0 : seconds_since(t0) * 1000.0;
+        if (round > 0) best[p] = std::min(best[p], ms);
+      }
+    for (int p = 0; p < kPassCount; ++p) r.ms[p].push_back(best[p]);
+  }
+  r.compaction_ms = compactor.value()->time_compaction(passes[kVt]->feedback_buffer(), 9) * 1000.0;
+  return r;
+}
+
+Result<LoopResult> measure_loop(vk::Context& g, const SceneAssets& assets, Method method, FeedbackMode mode,
+                                const BenchFrameArgs& a) {
+  FlythroughOptions fo;
+  fo.method = method;
+  fo.frames = a.frames;
+  fo.width = a.width;
+  fo.height = a.height;
+  fo.fps = a.fps;
+  fo.feedback_divisor = a.feedback_divisor;
+  fo.feedback_mode = mode;
+  fo.vt.cache_slots = a.cache_slots;
+  fo.vt.page_budget = a.page_budget;
+  // Frame cost: on a CPU device the process CPU time from one frame's callback to the next (the
+  // whole frame: residency, composition, passes, compaction); else the wall clock of the frame's
+  // command buffer (composition + table scatter + terrain pass).
+  const bool cpu_device = g.properties().deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU;
+  std::vector<double> steady, all, feedback_cpu, select;
+  LoopResult r;
+  int cut_frame = -1;
+  double last_cpu = process_cpu_ms();
+  auto run = run_flythrough(g, assets, fo, [&](const FlythroughFrame& f, const auto&) {
+    const double now = process_cpu_ms(), ms = cpu_device ? now - last_cpu : f.gpu_ms;
+    last_cpu = now;
+    if (f.index > 0) all.push_back(ms);  // frame 0 carries the loop's set-up
+    if (f.vt.composed == 0 && f.index > 5) steady.push_back(ms);
+    // CPU before the frame's commands: feedback read-back parse, LRU update of the feedback
+    // pages and their ancestors, window recentring; minus the request selection.
+    feedback_cpu.push_back(f.cpu_ms - f.vt.select_ms);
+    select.push_back(f.vt.select_ms);
+    if (f.cut) cut_frame = int(f.index);
+    // Sharp: the feedback already comes from after the cut, and nothing is requested (every
+    // page the view wants, at its wanted mip, is resident).
+    const bool post_cut_feedback =
+        cut_frame >= 0 && f.feedback_frames_late > 0 && f.index >= uint32_t(cut_frame) + f.feedback_frames_late;
+    if (post_cut_feedback && r.time_to_sharp < 0 && f.vt.residency.requested == 0) r.time_to_sharp = int(f.index) - cut_frame;
+    return true;
+  });
+  if (!run) return run.error();
+  r.cut = cut_frame >= 0;
+  r.steady_ms = median(steady);
+  r.steady_frames = steady.size();
+  r.all_ms = median(all);
+  r.feedback_cpu_ms = median(feedback_cpu);
+  r.select_ms = median(select);
+  return r;
+}
+
+std::string sharp_text(const LoopResult& l) {
+  return !l.cut ? "no cut" : (l.time_to_sharp < 0 ? "not reached" : std::to_string(l.time_to_sharp) + " frames");
+}
+
+}  // namespace
+
+int run_bench_frame(const BenchFrameArgs& a) {
+  const char* cmd = "bench frame";
+  std::vector<Method> methods;
+  for (const std::string& m : a.methods) {
+    auto parsed = method_from_string(m);
+    if (!parsed) return fail(cmd, "--methods: unknown method '" + m + "'", 2);
+    methods.push_back(*parsed);
+  }
+  if (methods.empty()) return fail(cmd, "--methods: name at least one method", 2);
+  if (a.frames < 10 || a.frames > 10000) return fail(cmd, "--frames: must be between 10 and 10000", 2);
+  if (a.poses < 1 || a.poses > 100) return fail(cmd, "--poses: must be between 1 and 100", 2);
+  if (a.rounds < 1 || a.rounds > 100) return fail(cmd, "--rounds: must be between 1 and 100", 2);
+  auto assets = load_scene_and_assets(a.scene);
+  if (!assets) return fail(cmd, assets.error().message, 2);
+  auto ctx = gpu_context(a.gpu_name);
+  if (!ctx) return fail(cmd, ctx.error().message, 1);
+  vk::Context& g = *ctx.value();
+  std::printf("terravt bench frame: %ux%u, feedback 1/%u, device %s\n", a.width, a.height, a.feedback_divisor,
+              g.device_name().c_str());
+
+  // The plain texture holds the last method's composition (sampling cost does not depend on
+  // the content; the picture is the terrain at VT mip log2 V - plain_log2).
+  auto plain_scene = pack_scene(assets.value(), options_for(methods.back()));
+  if (!plain_scene) return fail(cmd, plain_scene.error().message, 2);
+  PlainTextureOptions po;
+  po.log2_size = a.plain_log2;
+  auto plain = PlainTexture::create(g, plain_scene.value(), po);
+  if (!plain) return fail(cmd, "--plain-log2: " + plain.error().message, 2);
+  std::printf("plain texture: %ux%u RGBA8 + mips (%.1f MB) = VT mip %u, %u pages composed in %.1f s\n\n",
+              1u << a.plain_log2, 1u << a.plain_log2, double(plain.value()->bytes()) / 1048576.0, plain.value()->vt_mip(),
+              plain.value()->pages_composed(), plain.value()->compose_seconds());
+
+  nlohmann::json j;
+  j["device"] = g.device_name();
+  j["width"] = a.width;
+  j["height"] = a.height;
+  j["feedback_divisor"] = a.feedback_divisor;
+  j["plain_texels"] = 1u << a.plain_log2;
+  const bool cpu_device = g.properties().deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU;
+  j["static_clock"] = cpu_device ? "process_cpu" : "wall";
+  std::printf("Steady state, converged cache, %u poses x %u rounds interleaved (median over poses, %s ms per frame):\n",
+              a.poses, a.rounds, cpu_device ? "CPU-device: process CPU" : "wall-clock");
+  std::printf("%-10s %7s %7s %9s %8s %8s %9s %9s %9s %8s %10s\n", "method", "plain", "VT", "VT/plain", "VT noFB",
+              "VT aniso", "aniso/VT", "direct", "VT/direct", "untex", "converged");
+  std::vector<StaticResult> statics;
+  for (Method m : methods) {
+    auto s = measure_static(g, assets.value(), m, *plain.value(), a);
+    if (!s) return fail(cmd, s.error().message, 1);
+    const StaticResult& r = s.value();
+    std::printf("%-10s %7.1f %7.1f %8.2fx %8.1f %8.1f %8.2fx %9.1f %8.2fx %8.1f %7u/%u\n", std::string(to_string(m)).c_str(),
+                r.pass(kPlain), r.pass(kVt), r.ratio(kVt, kPlain), r.pass(kVtNoFeedback), r.pass(kVtAniso),
+                r.ratio(kVtAniso, kVt), r.pass(kDirect), r.ratio(kVt, kDirect), r.pass(kUntextured),
+                a.poses - r.unconverged_poses, a.poses);
+    statics.push_back(std::move(s.value()));
+  }
+  std::printf("Targets: VT <= 1.25x plain; VT(fbpb+dpt2) <= 0.33x direct. VT = sampling + main-pass feedback as it runs;\n"
+              "VT noFB = sampling alone (VT noFB / plain: ");
+  for (size_t i = 0; i < methods.size(); ++i)
+    std::printf("%s%s %.2fx", i ? ", " : "", std::string(to_string(methods[i])).c_str(),
+                statics[i].ratio(kVtNoFeedback, kPlain));
+  std::printf(").\n\nFeedback cost per frame (GPU, same poses): main-pass writes vs a separate 1/%u pass, plus compaction:\n",
+              a.feedback_divisor);
+  for (size_t i = 0; i < methods.size(); ++i) {
+    const StaticResult& r = statics[i];
+    std::printf("  %-10s main-pass %+.2f ms   separate pass %+.2f ms (VT+sep %.1f ms)   compaction %.2f ms\n",
+                std::string(to_string(methods[i])).c_str(), r.difference(kVt, kVtNoFeedback),
+                r.difference(kVtSeparate, kVtNoFeedback), r.pass(kVtSeparate), r.compaction_ms);
+  }
+
+  std::printf("\nFlythrough loop, %u frames at %.0f fps, cache %u pages, budget %u (median ms per frame):\n", a.frames, a.fps,
+              a.cache_slots, a.page_budget);
+  std::printf("%-10s %-9s %10s %14s %10s %14s %14s %14s %10s\n", "method", "feedback", "VT steady", "VT+production",
+              "VT/direct", "VT+prod/direct", "time-to-sharp", "feedback CPU", "select");
+  nlohmann::json jm;
+  for (size_t i = 0; i < methods.size(); ++i) {
+    const std::string name(to_string(methods[i]));
+    nlohmann::json& e = jm[name];
+    for (int p = 0; p < kPassCount; ++p) e["static_ms"][k_pass_names[p]] = statics[i].pass(Pass(p));
+    e["vt_over_plain"] = statics[i].ratio(kVt, kPlain);
+    e["vt_no_feedback_over_plain"] = statics[i].ratio(kVtNoFeedback, kPlain);
+    e["vt_over_direct"] = statics[i].ratio(kVt, kDirect);
+    e["aniso_over_vt"] = statics[i].ratio(kVtAniso, kVt);
+    e["feedback_gpu_ms"] = {{"main_pass", statics[i].difference(kVt, kVtNoFeedback)},
+                            {"separate_pass", statics[i].difference(kVtSeparate, kVtNoFeedback)},
+                            {"compaction", statics[i].compaction_ms}};
+    for (FeedbackMode mode : {FeedbackMode::MainPass, FeedbackMode::SeparatePass}) {
+      if (a.static_only) break;
+      auto l = measure_loop(g, assets.value(), methods[i], mode, a);
+      if (!l) return fail(cmd, l.error().message, 1);
+      const char* mode_name = mode == FeedbackMode::MainPass ? "main-pass" : "separate";
+      char steady[32] = "no steady", steady_ratio[32] = "-";
+      if (l->steady_frames > 0) {
+        std::snprintf(steady, sizeof steady, "%.1f", l->steady_ms);
+        std::snprintf(steady_ratio, sizeof steady_ratio, "%.2fx", l->steady_ms / statics[i].pass(kDirect));
+      }
+      std::printf("%-10s %-9s %10s %14.1f %10s %13.2fx %14s %11.3f ms %7.3f ms\n", name.c_str(), mode_name, steady,
+                  l->all_ms, steady_ratio, l->all_ms / statics[i].pass(kDirect), sharp_text(l.value()).c_str(),
+                  l->feedback_cpu_ms, l->select_ms);
+      e["loop"][mode_name] = {{"steady_ms", l->steady_ms},       {"steady_frames", l->steady_frames},
+                              {"with_production_ms", l->all_ms},
+                              {"time_to_sharp", l->time_to_sharp}, {"feedback_cpu_ms", l->feedback_cpu_ms},
+                              {"select_ms", l->select_ms}};
+    }
+  }
+  j["methods"] = jm;
+  std::printf("(Loop frames: %s;\n VT/direct: loop frame over the static direct pass. Feedback CPU: read-back parse, LRU update,\n"
+              " window recentring, on the frame thread; select: request selection.)\n",
+              cpu_device ? "process CPU per whole frame (residency, composition, passes, compaction)" : "wall clock of the frame's commands");
+
+  std::printf("\nVT memory against V (page table W = 128, cache of %u pages of %ux%u RGBA8):\n", a.cache_slots,
+              assets->desc.vt.slot_texels(), assets->desc.vt.slot_texels());
+  for (uint32_t log2v : {14u, 16u, 20u, 24u}) {
+    VtConfig vt = assets->desc.vt;
+    vt.log2_size = log2v;
+    const PageTable table(vt, PageTableOptions{128});
+    const double cache_mb = double(a.cache_slots) * vt.slot_texels() * vt.slot_texels() * 4 / 1048576.0;
+    const double table_mb = double(table.memory_bytes()) / 1048576.0;
+    std::printf("  V = 2^%-2u  page table %8.3f MB   cache %6.1f MB   total %6.1f MB\n", log2v, table_mb, cache_mb,
+                table_mb + cache_mb);
+    j["memory_mb"][std::to_string(log2v)] = {{"page_table", table_mb}, {"cache", cache_mb}};
+  }
+  if (!a.json_out.empty()) {
+    std::ofstream f(a.json_out);
+    if (!f) return fail(cmd, "--json: cannot write " + a.json_out, 1);
+    f << j.dump(2) << "\n";
+  }
+  return 0;
+}
+
+}  // namespace tvt::cli
