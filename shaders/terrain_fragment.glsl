@@ -62,6 +62,7 @@ layout(std140, set = 0, binding = TVT_BIND_TERRAIN_FEEDBACK_PARAMS) uniform Feed
 #endif
 #include "vt_sample.glsl"
 layout(constant_id = TVT_TERRAIN_SPEC_MAX_ANISOTROPY) const int k_max_anisotropy = 1;
+layout(constant_id = TVT_TERRAIN_SPEC_FEEDBACK_DIVISOR) const uint k_feedback_divisor = 8u;  // = FB.divisor
 
 #ifdef TVT_TERRAIN_VT_PROBE
 // Distance in data-mip texels from the lookup's sample point to the nearest edge of the page
@@ -100,8 +101,8 @@ vec4 terrain_albedo(TerrainFragment f) {
   const VtFootprint fp = vt_footprint(f.dtexel_dx, f.dtexel_dy, VT.mip_bias, k_max_anisotropy);
 #ifdef TVT_TERRAIN_VT_FEEDBACK
   const uvec2 px = uvec2(gl_FragCoord.xy);
-  if (px.x % FB.divisor == FB.offset_x && px.y % FB.divisor == FB.offset_y) {
-    const uvec2 fb = px / FB.divisor;
+  if (px.x % k_feedback_divisor == FB.offset_x && px.y % k_feedback_divisor == FB.offset_y) {
+    const uvec2 fb = px / k_feedback_divisor;
     if (fb.x < FB.width && fb.y < FB.height) feedback[fb.y * FB.width + fb.x] = vt_feedback_texel(ti, fp.lod);
   }
 #endif

@@ -25,10 +25,13 @@ TVT_CONST uint TVT_BIND_TERRAIN_WEIGHTS = 10u;           // storage float[]
 // Plain-texture mode (terrain_plain.frag: one ordinary mip-mapped texture over the whole
 // terrain, the baseline a VT is measured against) adds, fragment stage:
 TVT_CONST uint TVT_BIND_TERRAIN_PLAIN = 11u;             // sampler2DArray (layer 0), trilinear
-// Fragment specialization constant (vk::GraphicsPipelineDesc::fragment_constants) of the VT
+// Fragment specialization constants (vk::GraphicsPipelineDesc::fragment_constants) of the VT
 // passes: most anisotropic taps per mip, 1 = isotropic (a constant, so the isotropic pipeline
 // carries no dead anisotropic branch: some devices, lavapipe among them, run both sides).
 #define TVT_TERRAIN_SPEC_MAX_ANISOTROPY 0
+// ... and of the main-pass feedback writer: the divisor N (a constant turns the per-pixel
+// "x mod N" into a multiply and shift; lavapipe has no vector integer division).
+#define TVT_TERRAIN_SPEC_FEEDBACK_DIVISOR 1
 TVT_CONST uint TVT_TERRAIN_ATTR_GRID = 0u;     // vertex attribute: uvec4 (i, j, skirt, 0), R16G16B16A16_UINT
 TVT_CONST uint TVT_HF_FRAC_BITS = 8u;          // heightfield coordinates in 1/256 heightfield texels
 
