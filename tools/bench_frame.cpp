@@ -77,6 +77,7 @@ struct LoopResult {
   int time_to_sharp = -1;  // frames after the cut; -1 not reached
   bool cut = false;
   size_t steady_frames = 0;
+  uint64_t pages_composed = 0;
 };
 
 Result<StaticResult> measure_static(vk::Context& g, const SceneAssets& assets, Method method, const PlainTexture& plain,
@@ -182,6 +183,7 @@ Result<LoopResult> measure_loop(vk::Context& g, const SceneAssets& assets, Metho
     const double now = process_cpu_ms(), ms = cpu_device ? now - last_cpu : f.gpu_ms;
     last_cpu = now;
     if (f.index > 0) all.push_back(ms);  // frame 0 carries the loop's set-up
+    r.pages_composed += f.vt.composed;
     if (f.vt.composed == 0 && f.index > 5) steady.push_back(ms);
     // CPU before the frame's commands: feedback read-back parse, LRU update of the feedback
     // pages and their ancestors, window recentring; minus the request selection.
@@ -282,8 +284,8 @@ int run_bench_frame(const BenchFrameArgs& a) {
 
   std::printf("\nFlythrough loop, %u frames at %.0f fps, cache %u pages, budget %u (median ms per frame):\n", a.frames, a.fps,
               a.cache_slots, a.page_budget);
-  std::printf("%-10s %-9s %10s %14s %10s %14s %14s %14s %10s\n", "method", "feedback", "VT steady", "VT+production",
-              "VT/direct", "VT+prod/direct", "time-to-sharp", "feedback CPU", "select");
+  std::printf("%-10s %-9s %10s %14s %10s %14s %7s %14s %14s %10s\n", "method", "feedback", "VT steady", "VT+production",
+              "VT/direct", "VT+prod/direct", "pages", "time-to-sharp", "feedback CPU", "select");
   nlohmann::json jm;
   for (size_t i = 0; i < methods.size(); ++i) {
     const std::string name(to_string(methods[i]));
@@ -306,11 +308,12 @@ int run_bench_frame(const BenchFrameArgs& a) {
         std::snprintf(steady, sizeof steady, "%.1f", l->steady_ms);
         std::snprintf(steady_ratio, sizeof steady_ratio, "%.2fx", l->steady_ms / statics[i].pass(kDirect));
       }
-      std::printf("%-10s %-9s %10s %14.1f %10s %13.2fx %14s %11.3f ms %7.3f ms\n", name.c_str(), mode_name, steady,
-                  l->all_ms, steady_ratio, l->all_ms / statics[i].pass(kDirect), sharp_text(l.value()).c_str(),
-                  l->feedback_cpu_ms, l->select_ms);
+      std::printf("%-10s %-9s %10s %14.1f %10s %13.2fx %7llu %14s %11.3f ms %7.3f ms\n", name.c_str(), mode_name, steady,
+                  l->all_ms, steady_ratio, l->all_ms / statics[i].pass(kDirect),
+                  static_cast<unsigned long long>(l->pages_composed), sharp_text(l.value()).c_str(), l->feedback_cpu_ms,
+                  l->select_ms);
       e["loop"][mode_name] = {{"steady_ms", l->steady_ms},       {"steady_frames", l->steady_frames},
-                              {"with_production_ms", l->all_ms},
+                              {"with_production_ms", l->all_ms}, {"pages_composed", l->pages_composed},
                               {"time_to_sharp", l->time_to_sharp}, {"feedback_cpu_ms", l->feedback_cpu_ms},
                               {"select_ms", l->select_ms}};
     }
