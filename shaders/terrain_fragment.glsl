@@ -54,6 +54,7 @@ layout(early_fragment_tests) in;
 #include "shared/vt_types.h"
 layout(std430, set = 0, binding = TVT_BIND_TERRAIN_VT_INFO) readonly buffer VtInfoBuf { TvtVtInfo VT; };
 layout(std430, set = 0, binding = TVT_BIND_TERRAIN_VT_INFO) readonly buffer VtInfoWords { ivec4 vt_info_words[]; };
+#define TVT_VT_INFO_WORDS
 layout(std430, set = 0, binding = TVT_BIND_TERRAIN_VT_ENTRIES) readonly buffer VtEntryBuf { uint pt_entries[]; };
 layout(set = 0, binding = TVT_BIND_TERRAIN_VT_CACHE) uniform sampler2DArray vt_cache;
 #ifdef TVT_TERRAIN_VT_FEEDBACK

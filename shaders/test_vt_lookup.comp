@@ -9,6 +9,7 @@
 layout(local_size_x = 64) in;
 layout(std430, set = 0, binding = TVT_BIND_TEST_VT_INFO) readonly buffer InfoBuf { TvtVtInfo VT; };
 layout(std430, set = 0, binding = TVT_BIND_TEST_VT_INFO) readonly buffer InfoWords { ivec4 vt_info_words[]; };
+#define TVT_VT_INFO_WORDS
 layout(std430, set = 0, binding = TVT_BIND_TEST_VT_ENTRIES) readonly buffer EntryBuf { uint pt_entries[]; };
 layout(std430, set = 0, binding = TVT_BIND_TEST_VT_QUERIES) readonly buffer QueryBuf { TvtVtQuery queries[]; };
 layout(std430, set = 0, binding = TVT_BIND_TEST_VT_ANSWERS) writeonly buffer AnswerBuf { TvtVtAnswer answers[]; };

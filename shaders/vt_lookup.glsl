@@ -1,10 +1,10 @@
 // Page-table lookup (DESIGN §5). The includer declares
 //   TvtVtInfo VT;  uint pt_entries[];
-// and, as a second block on VT's binding, ivec4 vt_info_words[] (the same bytes: mip m's
-// window TvtVtMip is word TVT_VT_INFO_MIP_WORD + m, vt_types.h): one 16-byte load per window
-// instead of four 4-byte loads (-15 % of the VT pass on lavapipe, where every buffer load is a
-// per-lane gather);
-// and enables GL_EXT_shader_explicit_arithmetic_types_int64.
+// and enables GL_EXT_shader_explicit_arithmetic_types_int64. Optionally it also declares, as a
+// second block on VT's binding, `ivec4 vt_info_words[]` and defines TVT_VT_INFO_WORDS: the same
+// bytes, so mip m's window (TvtVtMip) is one 16-byte load, word TVT_VT_INFO_MIP_WORD + m
+// (vt_types.h), instead of four 4-byte loads (-15 % of the VT pass on lavapipe, where every
+// buffer load is a per-lane gather).
 // Positions are level-0 texels as an exact integer part `ti` plus a float fraction `tf`
 // (|tf| small): no whole-terrain float coordinate anywhere (DESIGN §3).
 #ifndef TVT_VT_LOOKUP_GLSL
@@ -30,7 +30,11 @@ VtLookup vt_lookup32(ivec2 ti, vec2 tf, int mip) {
   mip = clamp(mip, 0, VT.mip_count - 1);
   for (int m = mip; m < VT.mip_count; ++m) {
     const ivec2 page = ti >> (VT.log2_page + m);
+#ifdef TVT_VT_INFO_WORDS
     const ivec4 w = vt_info_words[TVT_VT_INFO_MIP_WORD + m];  // origin x, y, size, entry offset
+#else
+    const ivec4 w = ivec4(VT.mips[m].origin_x, VT.mips[m].origin_y, VT.mips[m].size, int(VT.mips[m].offset));
+#endif
     const ivec2 origin = w.xy;
     const int size = w.z;
     if (any(lessThan(page, origin)) || any(greaterThanEqual(page, origin + size))) continue;
@@ -48,11 +52,13 @@ VtLookup vt_lookup32(ivec2 ti, vec2 tf, int mip) {
   return r;
 }
 
-// Same for any 64-bit texel coordinate: positions beyond [-2^31, 2^31) clamp (they lie outside
-// every terrain V <= 2^30 allows, where lookups clamp to the edge pages anyway).
-VtLookup vt_lookup(i64vec2 ti, vec2 tf, int mip) {
+// A 64-bit texel coordinate as int32: positions beyond [-2^31, 2^31) clamp (they lie outside
+// every terrain V <= 2^30 allows).
+ivec2 vt_texel32(i64vec2 ti) {
   const i64vec2 lim = i64vec2(0x7fffffff);
-  return vt_lookup32(ivec2(clamp(ti, -lim - int64_t(1), lim)), tf, mip);
+  return ivec2(clamp(ti, -lim - int64_t(1), lim));
 }
+
+VtLookup vt_lookup(i64vec2 ti, vec2 tf, int mip) { return vt_lookup32(vt_texel32(ti), tf, mip); }
 
 #endif

@@ -1,7 +1,7 @@
 // Sampling through the virtual texture (DESIGN §5): vt_lookup.glsl plus the physical cache.
 // The includer also declares sampler2DArray vt_cache (bilinear, clamp to edge, no mips).
 // Positions: level-0 texel `ti` (int32: positions on a terrain of V <= 2^30 texels fit, see
-// vt_lookup32) plus the fraction `tf` in [0, 1).
+// vt_lookup32; i64vec2 overloads clamp) plus the fraction `tf` in [0, 1).
 #ifndef TVT_VT_SAMPLE_GLSL
 #define TVT_VT_SAMPLE_GLSL
 #include "vt_lookup.glsl"
@@ -18,6 +18,8 @@ vec4 vt_sample_mip(ivec2 ti, vec2 tf, int mip) {
   if (VT.debug_view == TVT_VT_VIEW_DATA_MIP) return tvt_mip_colour(l.data_mip);
   return vt_fetch(l.slot, l.local);
 }
+
+vec4 vt_sample_mip(i64vec2 ti, vec2 tf, int mip) { return vt_sample_mip(vt_texel32(ti), tf, mip); }
 
 // LOD from the footprint in level-0 texels per pixel (max of the two derivative lengths).
 float vt_lod(vec2 dx, vec2 dy) { return vt_lod_iso(dx, dy, VT.mip_bias); }
@@ -38,6 +40,8 @@ vec4 vt_sample(ivec2 ti, vec2 tf, float lod) {
   if (t <= 0.0) return a;
   return mix(a, vt_sample_mip(ti, tf, m0 + 1), t);
 }
+
+vec4 vt_sample(i64vec2 ti, vec2 tf, float lod) { return vt_sample(vt_texel32(ti), tf, lod); }
 
 // Anisotropic, one mip: one page lookup, then `taps` bilinear taps inside that slot along
 // `axis` (level-0 texels; the taps sit at (i + 1/2)/taps - 1/2 of it, i = 0 .. taps-1). The tap
