@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 
+#include "compose/scene_identity.h"
 #include "render/feedback_compactor.h"
 #include "render/terrain_renderer.h"
 #include "render/vt_debug.h"
@@ -26,7 +27,9 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
   if (!(o.fps > 0.0)) return make_error("fps: must be > 0");
   auto packed = pack_scene(assets, options_for(o.method));
   if (!packed) return packed.error();
-  auto vt = VtSystem::create(g, packed.value(), o.vt);
+  VtSystemOptions vto = o.vt;
+  if (vto.store && vto.scene_hash == 0) vto.scene_hash = scene_identity(assets.desc, o.method);
+  auto vt = VtSystem::create(g, packed.value(), vto);
   if (!vt) return vt.error();
   VtSystem& v = *vt.value();
   v.set_debug_view(o.debug_view);
@@ -82,12 +85,16 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
     compactor.value()->submit(t.feedback_buffer(), f);
     v.end_frame();
     fr.vt = v.stats();
+    if (v.stored()) fr.store_errors = v.stored()->take_error_messages();
     fr.triangles = t.last_stats().triangles;
     fr.cpu_ms = ms_between(t0, t1);
     fr.gpu_ms = ms_between(t1, t2);
     fr.total_ms = ms_between(t0, std::chrono::steady_clock::now());
     sum.frames = f + 1;
     sum.pages_composed += fr.vt.composed;
+    sum.pages_loaded += fr.vt.stored.landed;
+    sum.load_failures += fr.vt.stored.failed;
+    sum.pages_missing += fr.vt.missing;
     sum.oversubscribed_frames += fr.vt.residency.oversubscribed ? 1u : 0u;
     sum.max_mip_bias = std::max(sum.max_mip_bias, fr.vt.residency.mip_bias);
     if (on_frame) {

@@ -35,6 +35,7 @@ struct FlythroughFrame {
   size_t feedback_pages = 0;
   uint64_t feedback_frames_late = 0;    // 0: no feedback yet
   VtFrameStats vt;
+  std::vector<std::string> store_errors;  // bad stored pages first seen this frame (each once)
   uint64_t triangles = 0;
   double cpu_ms = 0, gpu_ms = 0, total_ms = 0;
 };
@@ -42,6 +43,9 @@ struct FlythroughFrame {
 struct FlythroughSummary {
   uint32_t frames = 0;
   uint64_t pages_composed = 0;
+  uint64_t pages_loaded = 0;            // stored pages copied into the cache
+  uint64_t load_failures = 0;           // stored pages that failed reading or verification
+  uint64_t pages_missing = 0;           // requests the store had no page for
   uint32_t oversubscribed_frames = 0;
   uint32_t max_mip_bias = 0;
   uint64_t gpu_bytes = 0;
