@@ -66,7 +66,7 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
     // The newest compacted feedback whose fence has signalled (1 or 2 frames late); never a
     // wait. When none is ready the previous list stands, so requests keep flowing.
     for (uint64_t late = 1; late <= 2 && late <= f; ++late)
-      if (auto r = compactor.value()->try_read(f - late)) {
+      if (auto r = o.deterministic ? compactor.value()->read_blocking(f - late) : compactor.value()->try_read(f - late)) {
         feedback.clear();
         for (const auto& [page, count] : r->pages) feedback.push_back(PageFeedback{page, count});
         fr.feedback_pages = r->pages.size();
@@ -85,6 +85,7 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
     compactor.value()->submit(t.feedback_buffer(), f);
     v.end_frame();
     fr.vt = v.stats();
+    fr.completed = v.last_completed();
     if (v.stored()) fr.store_errors = v.stored()->take_error_messages();
     fr.triangles = t.last_stats().triangles;
     fr.cpu_ms = ms_between(t0, t1);

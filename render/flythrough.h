@@ -25,6 +25,10 @@ struct FlythroughOptions {
   uint32_t feedback_divisor = 8;        // N
   VtSystemOptions vt;
   int debug_view = 0;                   // TVT_VT_VIEW_*: 1 colours every texel by its data mip
+  // Reads each frame's feedback exactly one frame late, waiting for it if needed, so two runs
+  // of one path request the same pages at the same frames (comparisons, tests). Off: the
+  // newest ready feedback, never a wait (what an engine does).
+  bool deterministic = false;
 };
 
 struct FlythroughFrame {
@@ -36,6 +40,7 @@ struct FlythroughFrame {
   uint64_t feedback_frames_late = 0;    // 0: no feedback yet
   VtFrameStats vt;
   std::vector<std::string> store_errors;  // bad stored pages first seen this frame (each once)
+  std::vector<PageId> completed;          // pages that became resident this frame
   uint64_t triangles = 0;
   double cpu_ms = 0, gpu_ms = 0, total_ms = 0;
 };

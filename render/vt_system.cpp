@@ -212,9 +212,16 @@ void VtSystem::record(VkCommandBuffer cmd) {
 }
 
 void VtSystem::end_frame() {
-  for (const PageJob& j : jobs_) residency_.complete(j.page);
+  completed_.clear();
+  for (const PageJob& j : jobs_) {
+    residency_.complete(j.page);
+    completed_.push_back(j.page);
+  }
   jobs_.clear();
-  for (const PageRequest& r : landing_) residency_.complete(r.page);
+  for (const PageRequest& r : landing_) {
+    residency_.complete(r.page);
+    completed_.push_back(r.page);
+  }
   landing_.clear();
   if (stored_) stored_->end_frame();
   stats_.residency = residency_.stats();

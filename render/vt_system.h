@@ -76,6 +76,8 @@ class VtSystem {
   void end_frame();
 
   const VtFrameStats& stats() const { return stats_; }
+  // Pages that became resident in the last end_frame() (composed or landed), in that order.
+  const std::vector<PageId>& last_completed() const { return completed_; }
   // Debug view for sampling passes (TVT_VT_VIEW_*), applied from the next begin_frame().
   void set_debug_view(int view) { debug_view_ = view; }
   const Residency& residency() const { return residency_; }
@@ -105,6 +107,7 @@ class VtSystem {
   vk::DescriptorSet scatter_set_;
   VkSampler sampler_ = VK_NULL_HANDLE;
   std::vector<PageJob> jobs_;
+  std::vector<PageId> completed_;
   std::vector<PageTableUpdate> pending_updates_;
   VtFrameStats stats_;
   int debug_view_ = 0;

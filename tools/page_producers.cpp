@@ -12,7 +12,7 @@
 namespace tvt::cli {
 
 Result<std::unique_ptr<PageProducers>> PageProducers::create(const SceneAssets& assets, Method method, bool cpu,
-                                                             const std::string& gpu_name) {
+                                                             const std::string& gpu_name, vk::Context* context) {
   std::unique_ptr<PageProducers> p(new PageProducers());
   p->assets_ = &assets;
   p->method_ = method;
@@ -24,11 +24,14 @@ Result<std::unique_ptr<PageProducers>> PageProducers::create(const SceneAssets& 
     p->device_name_ = "cpu-reference";
     return p;
   }
-  auto ctx = gpu_context(gpu_name);
-  if (!ctx) return make_error(ctx.error().message + " (use --cpu for the CPU reference)");
-  p->context_ = std::move(ctx.value());
-  p->device_name_ = p->context_->device_name();
-  auto composer = GpuComposer::create(*p->context_, p->packed_, 32);
+  if (!context) {
+    auto ctx = gpu_context(gpu_name);
+    if (!ctx) return make_error(ctx.error().message + " (use --cpu for the CPU reference)");
+    p->context_ = std::move(ctx.value());
+    context = p->context_.get();
+  }
+  p->device_name_ = context->device_name();
+  auto composer = GpuComposer::create(*context, p->packed_, 32);
   if (!composer) return composer.error();
   p->composer_ = std::move(composer.value());
   return p;

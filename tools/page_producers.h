@@ -16,15 +16,17 @@ namespace tvt::cli {
 
 class PageProducers {
  public:
-  // cpu: the CPU reference on every core; else the GPU composer on `gpu_name`'s device.
+  // cpu: the CPU reference on every core; else the GPU composer on `context` if given, or on
+  // a new context for `gpu_name`'s device.
   static Result<std::unique_ptr<PageProducers>> create(const SceneAssets& assets, Method method, bool cpu,
-                                                       const std::string& gpu_name);
+                                                       const std::string& gpu_name, vk::Context* context = nullptr);
+  GpuComposer* composer() { return composer_.get(); }
   // A store header for pages made by this producer at zstd `level`.
   StoreDesc store_desc(int level) const;
   // Produces pages in order; raw (P+2B)^2 RGBA8 each.
   PageSource source();
   const std::string& device_name() const { return device_name_; }
-  vk::Context* context() { return context_.get(); }
+
 
  private:
   PageProducers() = default;
