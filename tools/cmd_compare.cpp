@@ -292,7 +292,7 @@ int run_compare(const CompareArgs& a) {
   const std::string plot = (std::filesystem::path(a.out) / "disk_vs_v.svg").string();
   if (!curve.empty()) std::ofstream(plot) << svg_plot(curve, double(input_packed));
 
-  std::printf("\n%-22s %12s %12s %12s %12s %12s\n", "", "frame ms", "pages/s", "ms/page", "GPU MB", "pages");
+  std::printf("\n%-22s %12s %12s %12s %12s %12s\n", "", "frame ms", "pages/s run", "ms/page", "GPU MB", "pages");
   auto row = [&](const char* name, const RunResult& r, double ms_page) {
     std::printf("%-22s %12.1f %12.1f %12.2f %12.1f %12llu\n", name, median(r.frame_ms),
                 double(r.summary.pages_composed + r.summary.pages_loaded) / std::max(1e-9, r.summary.seconds), ms_page,
