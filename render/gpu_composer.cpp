@@ -29,6 +29,8 @@ Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, c
   c->params_buffer_ = context.create_buffer(sizeof(gpu::TvtComposeParams), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
   std::memcpy(c->params_buffer_.mapped(), &c->params_, sizeof(c->params_));
   c->materials_ = std::make_unique<MaterialUploader>(context, scene);
+  if (options.poison_materials)
+    context.run_commands([&](VkCommandBuffer cmd) { c->materials_->fill(cmd, 0xffffffffu); });
   if (!options.lazy_materials) c->materials_->upload_all();
   c->job_buffer_ = context.create_buffer(sizeof(gpu::TvtPageJob) * slots, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
   c->readback_buffer_ = context.create_buffer(VkDeviceSize(c->slot_texels_) * c->slot_texels_ * 4 * slots,
@@ -70,17 +72,16 @@ void GpuComposer::set_params(const gpu::TvtComposeParams& params) {
 
 void GpuComposer::record(VkCommandBuffer cmd, std::span<const PageJob> jobs) {
   TVT_CHECK(jobs.size() <= slots_);
-  if (jobs.empty()) return;
   auto* dst = static_cast<gpu::TvtPageJob*>(job_buffer_.mapped());
-  uint32_t needed = 0;  // materials any of the pages reads
+  MaterialNeeds needed;  // what any of the pages reads
   for (size_t i = 0; i < jobs.size(); ++i) {
     TVT_CHECK(jobs[i].slot < slots_);
     const uint32_t mask = culling_ ? culler_->mask(jobs[i].page) : 0xffffffffu;
     dst[i] = gpu::TvtPageJob{jobs[i].page.mip, jobs[i].page.x, jobs[i].page.y, jobs[i].slot, mask, 0u, 0u, 0u};
-    needed |= mask;
+    if (params_.pattern == gpu::TVT_COMPOSE_PATTERN_NONE) needed.merge(culler_->needs(jobs[i].page, mask));
   }
-  // The coordinate pattern reads no material.
-  materials_->record(cmd, params_.pattern == gpu::TVT_COMPOSE_PATTERN_NONE ? needed : 0u);
+  materials_->record(cmd, needed);  // also with no jobs: the per-record counters restart
+  if (jobs.empty()) return;
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.handle());
   const VkDescriptorSet set = descriptors_.handle();
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.layout(), 0, 1, &set, 0, nullptr);

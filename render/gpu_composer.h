@@ -2,9 +2,10 @@
 // into layers of a storage image (RGBA8, (P+2B)^2 per layer). Planned once from a
 // PackedScene, then only records (STYLE #9). Not thread-safe; one queue.
 //
-// Materials are uploaded lazily by default (render/material_uploader.h): record() uploads a
-// material's texels, meta-texture and weight layer just before the first dispatch whose pages'
-// culling masks include it. Output is byte-identical to uploading everything at create().
+// Materials are uploaded lazily by default (render/material_uploader.h): record() uploads what
+// its pages read for the first time (weight layer, texture levels, meta-texture; exactly as
+// compose/material_culling.h predicts) just before their dispatch. Output is byte-identical to
+// uploading everything at create().
 #pragma once
 #include <cstdint>
 #include <memory>
@@ -25,9 +26,12 @@ struct PageJob {
 };
 
 struct GpuComposerOptions {
-  // true: a material reaches the GPU with the first recorded page that uses it; false: every
-  // material is uploaded by create().
+  // true: material data reaches the GPU with the first recorded page that reads it (the
+  // material, the levels of its texture, its meta-texture); false: create() uploads it all.
   bool lazy_materials = true;
+  // Tests: fill the material buffers with 0xffffffff first, so that a read of anything not
+  // uploaded yet shows instead of reading whatever the allocation held.
+  bool poison_materials = false;
 };
 
 class GpuComposer {

@@ -1,6 +1,7 @@
 #include "render/material_uploader.h"
 
 #include <algorithm>
+#include <bit>
 #include <cstring>
 
 namespace tvt {
@@ -21,22 +22,30 @@ MaterialUploader::MaterialUploader(vk::Context& context, const PackedScene& scen
   std::vector<bool> layer_counted(size_t(p.weight_layers), false);
   for (int n = 0; n < p.material_count; ++n) {
     const gpu::TvtMaterial& m = p.materials[n];
+    TVT_CHECK(m.mip_count >= 1 && m.mip_count <= 31 && m.resolution >= 1);
     Material mat;
     mat.layout = m;
-    size_t words = 0;  // the whole mip chain, as material_texel() in compose_sample.glsl reads it
-    for (int l = 0; l < m.mip_count; ++l) words += (size_t(m.resolution) >> l) * (size_t(m.resolution) >> l);
-    mat.texels = {m.texel_offset, words};
-    TVT_CHECK(mat.texels.first + mat.texels.count <= scene.material_texels.size());
+    // Level l of the chain, as material_texel() in compose_sample.glsl addresses it.
+    size_t at = m.texel_offset;
+    for (int l = 0; l < m.mip_count; ++l) {
+      mat.level_first.push_back(at);
+      at += (size_t(m.resolution) >> l) * (size_t(m.resolution) >> l);
+    }
+    mat.level_first.push_back(at);
+    mat.texels = {m.texel_offset, at - m.texel_offset};
+    TVT_CHECK(at <= scene.material_texels.size());
     if (m.meta_offset != gpu::TVT_NO_META) {
       mat.meta = {2 * size_t(m.meta_offset), 2 * size_t(m.resolution) * size_t(m.resolution)};
       TVT_CHECK(mat.meta.first + mat.meta.count <= scene.meta_texels.size());
     }
+    mat.meta_resident = mat.meta.count == 0;
+    mat.resident_from = m.mip_count;
     TVT_CHECK(m.weight_layer >= 0 && m.weight_layer < p.weight_layers);
     mat.weight_layer = m.weight_layer;
     stats_.bytes_total += 4 * (mat.texels.count + mat.meta.count);
     if (!layer_counted[size_t(m.weight_layer)]) stats_.bytes_total += 4 * layer_floats_;
     layer_counted[size_t(m.weight_layer)] = true;
-    materials_.push_back(mat);
+    materials_.push_back(std::move(mat));
   }
   stats_.materials = uint32_t(p.material_count);
   host_texels_ = scene.material_texels;
@@ -61,13 +70,29 @@ bool MaterialUploader::same_layout(const gpu::TvtComposeParams& params) const {
   return true;
 }
 
-void MaterialUploader::record(VkCommandBuffer cmd, uint32_t mask) {
+MaterialNeeds MaterialUploader::everything() const {
+  MaterialNeeds all;
+  all.mask = all_mask();
+  all.meta_mask = all_mask();
+  return all;  // finest_level 0 everywhere
+}
+
+void MaterialUploader::fill(VkCommandBuffer cmd, uint32_t word) {
+  for (const vk::Buffer* b : {&texel_buffer_, &meta_buffer_, &weight_buffer_})
+    vkCmdFillBuffer(cmd, b->handle(), 0, VK_WHOLE_SIZE, word);
+  VkMemoryBarrier barrier{};
+  barrier.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
+  barrier.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+  barrier.dstAccessMask = VK_ACCESS_MEMORY_READ_BIT | VK_ACCESS_MEMORY_WRITE_BIT;
+  vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, 0, 1, &barrier, 0,
+                       nullptr, 0, nullptr);
+}
+
+void MaterialUploader::record(VkCommandBuffer cmd, const MaterialNeeds& needs) {
   staging_.clear();  // the previous record()'s commands have completed (class contract)
   stats_.last_materials = 0;
   stats_.last_bytes = 0;
-  const uint32_t all = materials_.size() >= 32 ? ~0u : (1u << materials_.size()) - 1u;
-  const uint32_t missing = mask & all & ~stats_.resident_mask;
-  if (missing != 0) record_copies(cmd, missing, staging_);
+  if (!all_resident()) record_copies(cmd, needs, staging_);
 }
 
 void MaterialUploader::upload_all() {
@@ -76,52 +101,64 @@ void MaterialUploader::upload_all() {
   stats_.last_bytes = 0;
   // One material per submission bounds the staging memory; not staging_: a recorded upload
   // that is not submitted yet may still own it.
+  const MaterialNeeds all = everything();
   for (size_t n = 0; n < materials_.size(); ++n) {
-    if (stats_.resident_mask & (1u << n)) continue;
+    if (stats_.complete_mask & (1u << n)) continue;
+    MaterialNeeds one = all;
+    one.mask = one.meta_mask = 1u << n;
     std::vector<vk::Buffer> keep;
-    context_->run_commands([&](VkCommandBuffer cmd) { record_copies(cmd, 1u << n, keep); });
+    context_->run_commands([&](VkCommandBuffer cmd) { record_copies(cmd, one, keep); });
   }
 }
 
-void MaterialUploader::record_copies(VkCommandBuffer cmd, uint32_t mask, std::vector<vk::Buffer>& keep) {
-  // Gather the ranges: one staging buffer, up to three destination buffers.
-  struct Piece {
+void MaterialUploader::record_copies(VkCommandBuffer cmd, const MaterialNeeds& needs, std::vector<vk::Buffer>& keep) {
+  struct Piece {  // host range -> one of the three device buffers
     const void* src;
     size_t bytes;
-    const vk::Buffer* dst;
+    int target;  // 0 texels, 1 meta, 2 weights
     VkDeviceSize dst_offset;
   };
   std::vector<Piece> pieces;
-  uint32_t count = 0;
-  uint64_t bytes = 0;
+  uint32_t touched = 0;
   for (size_t n = 0; n < materials_.size(); ++n) {
-    if (!(mask & (1u << n))) continue;
-    const Material& m = materials_[n];
-    pieces.push_back({host_texels_.data() + m.texels.first, 4 * m.texels.count, &texel_buffer_, 4 * m.texels.first});
-    if (m.meta.count > 0)
-      pieces.push_back({host_meta_.data() + m.meta.first, 4 * m.meta.count, &meta_buffer_, 4 * m.meta.first});
+    const uint32_t bit = 1u << n;
+    if (!(needs.mask & bit)) continue;
+    Material& m = materials_[n];
+    const int finest = std::min<int>(needs.finest_level[n], m.layout.mip_count - 1);
+    if (finest < m.resident_from) {  // levels [finest, resident_from): contiguous in the chain
+      const size_t first = m.level_first[size_t(finest)], end = m.level_first[size_t(m.resident_from)];
+      pieces.push_back({host_texels_.data() + first, 4 * (end - first), 0, 4 * first});
+      m.resident_from = finest;
+      touched |= bit;
+    }
+    if ((needs.meta_mask & bit) && !m.meta_resident) {
+      pieces.push_back({host_meta_.data() + m.meta.first, 4 * m.meta.count, 1, 4 * m.meta.first});
+      m.meta_resident = true;
+      touched |= bit;
+    }
     const size_t layer = size_t(m.weight_layer);
     if (!layer_resident_[layer]) {
-      pieces.push_back({host_weights_.data() + layer * layer_floats_, 4 * layer_floats_, &weight_buffer_,
-                        4 * layer * layer_floats_});
+      pieces.push_back({host_weights_.data() + layer * layer_floats_, 4 * layer_floats_, 2, 4 * layer * layer_floats_});
       layer_resident_[layer] = true;
+      touched |= bit;
     }
-    ++count;
-    stats_.resident_mask |= 1u << n;
+    if (!(stats_.resident_mask & bit)) ++stats_.resident;
+    stats_.resident_mask |= bit;
+    if (m.resident_from == 0 && m.meta_resident) stats_.complete_mask |= bit;
   }
   if (pieces.empty()) return;
+  size_t bytes = 0;
   for (const Piece& p : pieces) bytes += p.bytes;
   vk::Buffer staging = context_->create_buffer(VkDeviceSize(bytes), VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true);
   auto* dst = static_cast<unsigned char*>(staging.mapped());
-  VkDeviceSize at = 0;
   std::vector<VkBufferCopy> regions[3];
-  const vk::Buffer* targets[3] = {&texel_buffer_, &meta_buffer_, &weight_buffer_};
+  VkDeviceSize at = 0;
   for (const Piece& p : pieces) {
     std::memcpy(dst + at, p.src, p.bytes);  // host writes: visible at submit
-    const size_t t = size_t(std::find(targets, targets + 3, p.dst) - targets);
-    regions[t].push_back(VkBufferCopy{at, p.dst_offset, VkDeviceSize(p.bytes)});
+    regions[p.target].push_back(VkBufferCopy{at, p.dst_offset, VkDeviceSize(p.bytes)});
     at += VkDeviceSize(p.bytes);
   }
+  const vk::Buffer* targets[3] = {&texel_buffer_, &meta_buffer_, &weight_buffer_};
   for (size_t t = 0; t < 3; ++t)
     if (!regions[t].empty())
       vkCmdCopyBuffer(cmd, staging.handle(), targets[t]->handle(), uint32_t(regions[t].size()), regions[t].data());
@@ -133,9 +170,8 @@ void MaterialUploader::record_copies(VkCommandBuffer cmd, uint32_t mask, std::ve
   vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, 0, 1, &barrier, 0,
                        nullptr, 0, nullptr);
   keep.push_back(std::move(staging));
-  stats_.resident += count;
   stats_.bytes_uploaded += bytes;
-  stats_.last_materials += count;
+  stats_.last_materials += uint32_t(std::popcount(touched));
   stats_.last_bytes += bytes;
   if (all_resident()) {  // nothing left to upload: the host copies are no longer needed
     host_texels_ = {};
