@@ -179,6 +179,7 @@ void VtSystem::begin_frame(uint64_t frame, uint32_t camera_x, uint32_t camera_y,
 
 void VtSystem::record(VkCommandBuffer cmd) {
   composer_->record(cmd, jobs_);
+  stats_.materials = composer_->upload_stats();
   if (stored_) {
     stored_->record(cmd, composer_->output());
     stats_.stored = stored_->stats();

@@ -61,6 +61,7 @@ struct VtFrameStats {
   uint32_t fallback_composed = 0;      // ... of which instead of a bad stored page (hybrid)
   uint32_t missing = 0;                // requests the store could not serve (stored source)
   StoredFrameStats stored;             // loader activity (stored and hybrid sources)
+  MaterialUploadStats materials;       // lazy material upload (what this frame's pages needed first)
   uint32_t table_updates = 0;          // entries scattered this frame
   double select_ms = 0;                // CPU time spent choosing requests
 };

@@ -135,6 +135,8 @@ int run_render(const RenderArgs& a) {
     j["mip_bias"] = s.residency.mip_bias;
     j["oversubscribed"] = s.residency.oversubscribed;
     j["table_updates"] = s.table_updates;
+    j["materials"] = {{"resident", s.materials.resident}, {"uploaded_bytes", s.materials.last_bytes},
+                      {"uploaded_total_bytes", s.materials.bytes_uploaded}, {"all_bytes", s.materials.bytes_total}};
     if (*source != VtSource::procedural) {
       j["stored"] = {{"requested", s.stored.requested}, {"landed", s.stored.landed}, {"failed", s.stored.failed},
                      {"cancelled", s.stored.cancelled}, {"outstanding", s.stored.outstanding},
