@@ -18,17 +18,23 @@ std::vector<uint8_t> synthetic_page(const StoreDesc& desc, const PageId& page, c
   const uint32_t noise_mask = params.noise_bits >= 8 ? 0xffu : (1u << params.noise_bits) - 1u;
   std::vector<uint8_t> out(size_t(desc.page_bytes()));
   uint8_t* t = out.data();
-  for (size_t layer = 0; layer < desc.layers.size(); ++layer)
+  for (size_t layer = 0; layer < desc.layers.size(); ++layer) {
+    // Four "materials" per layer: a palette of four colours, one chosen per 8x8-texel block.
+    const uint64_t salt = params.seed * 8 + layer;
+    uint8_t palette[4][3];
+    for (int m = 0; m < 4; ++m)
+      for (int c = 0; c < 3; ++c) palette[m][c] = uint8_t(hash4(salt, 99, uint64_t(m), uint64_t(c)));
     for (uint32_t y = 0; y < slot; ++y)
       for (uint32_t x = 0; x < slot; ++x, t += 4) {
         // Global texel coordinates at this mip (may be negative in the border of edge pages).
         const int64_t gx = int64_t(page.x) * p + int64_t(x) - b, gy = int64_t(page.y) * p + int64_t(y) - b;
-        const uint64_t salt = params.seed * 8 + layer;
         const uint64_t block = hash4(salt, page.mip, uint64_t(gx >> 3), uint64_t(gy >> 3));
         const uint64_t noise = noise_mask ? hash4(salt + 1, page.mip, uint64_t(gx), uint64_t(gy)) : 0;
-        for (int c = 0; c < 3; ++c) t[c] = uint8_t((block >> (8 * c)) ^ ((noise >> (8 * c)) & noise_mask));
-        t[3] = uint8_t(uint64_t(gx + gy) / 4 + (noise >> 24 & noise_mask));
+        const uint8_t* colour = palette[block & 3];
+        for (int c = 0; c < 3; ++c) t[c] = uint8_t(colour[c] + ((noise >> (8 * c)) & noise_mask));
+        t[3] = uint8_t(uint64_t(gx + gy) / 8 + (block & 3) * 16 + ((noise >> 24) & noise_mask));
       }
+  }
   return out;
 }
 
