@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
+#include <filesystem>
 
 namespace tvt::store_format {
 
@@ -14,6 +15,8 @@ constexpr size_t k_flush_bytes = size_t(4) << 20;  // write records in chunks of
 }
 
 Result<StoreWriter> StoreWriter::open(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) return make_error(path + ": is a folder, not a page store path");
   StoreWriter w;
   w.path_ = path;
   w.partial_ = path + ".partial";

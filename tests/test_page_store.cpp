@@ -369,6 +369,15 @@ TEST_F(PageStoreTest, BadInputErrorsNameTheFileAndTheField) {
   o.shard_index = 2;
   o.shard_count = 2;
   EXPECT_NE(bake_error(desc, plan, o).find("options shard_index"), std::string::npos);
+  o = BakeOptions{};
+  o.batch_pages = 0;
+  EXPECT_NE(bake_error(desc, plan, o).find("options batch_pages"), std::string::npos);
+  auto into_folder = bake_store(dir_.string(), desc, plan, synthetic_source(desc), BakeOptions{});
+  ASSERT_FALSE(into_folder.ok());
+  EXPECT_NE(into_folder.error().message.find(dir_.string() + ": is a folder"), std::string::npos);
+  auto no_dir = bake_store(path("no/such/dir/x.tvt"), desc, plan, synthetic_source(desc), BakeOptions{});
+  ASSERT_FALSE(no_dir.ok());
+  EXPECT_NE(no_dir.error().message.find(path("no/such/dir/x.tvt.partial") + ": cannot create"), std::string::npos);
 }
 
 TEST_F(PageStoreTest, VerifyListsEveryBadPageOnOneLine) {
