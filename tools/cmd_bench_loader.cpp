@@ -4,6 +4,7 @@
 // the real `zstd -b` on the concatenated raw pages cut into page-sized blocks when the binary
 // exists. Ratios loader / in-memory zstd show what the loader's I/O and bookkeeping cost.
 // (A top-level command: `bench` dispatches to its own subcommands in cmd_bench.cpp.)
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 #include <zstd.h>
@@ -31,6 +32,12 @@ namespace {
 
 namespace fs = std::filesystem;
 
+double process_cpu_seconds() {
+  rusage u{};
+  ::getrusage(RUSAGE_SELF, &u);
+  return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
+
 struct BenchLoaderArgs {
   std::string store;
   std::string json_out;
@@ -45,6 +52,9 @@ struct BenchLoaderArgs {
 struct Rate {
   uint64_t pages = 0, raw_bytes = 0, stored_bytes = 0;
   double seconds = 0;
+  double cpu_seconds = 0;  // user + system time of the whole process during the run
+  double read_ms = 0, decode_ms = 0;  // loader only: summed LoadedPage::read_ms / decode_ms
+  double cpu_us_per_page() const { return pages ? cpu_seconds * 1e6 / double(pages) : 0.0; }
   double pages_s() const { return seconds > 0 ? double(pages) / seconds : 0.0; }
   double raw_mb_s() const { return seconds > 0 ? double(raw_bytes) / seconds * 1e-6 : 0.0; }
   double stored_mb_s() const { return seconds > 0 ? double(stored_bytes) / seconds * 1e-6 : 0.0; }
@@ -59,6 +69,7 @@ Result<Rate> run_loader(const std::shared_ptr<const PageStoreReader>& store, uin
   Rate rate;
   uint64_t next = 0;
   std::vector<LoadedPage> done;
+  const double cpu0 = process_cpu_seconds();
   const auto t0 = std::chrono::steady_clock::now();
   for (;;) {
     while (loader.request(entries[next % entries.size()].page, next)) ++next;
@@ -71,12 +82,15 @@ Result<Rate> run_loader(const std::shared_ptr<const PageStoreReader>& store, uin
       }
       ++rate.pages;
       rate.stored_bytes += entries[p.tag % entries.size()].stored_bytes;
+      rate.read_ms += p.read_ms;
+      rate.decode_ms += p.decode_ms;
       loader.release(p.staging);
     }
     rate.seconds = seconds_since(t0);
     if (rate.seconds >= seconds && rate.pages >= entries.size()) break;
     if (done.empty()) std::this_thread::sleep_for(std::chrono::microseconds(50));
   }
+  rate.cpu_seconds = process_cpu_seconds() - cpu0;
   rate.raw_bytes = rate.pages * store->page_bytes();
   return rate;
 }
@@ -88,6 +102,7 @@ Rate run_memory(const std::vector<std::vector<uint8_t>>& blobs, const std::vecto
   ZSTD_DDict* ddict = dictionary.empty() ? nullptr : ZSTD_createDDict(dictionary.data(), dictionary.size());
   std::atomic<uint64_t> pages{0}, stored{0};
   std::atomic<bool> failed{false};
+  const double cpu0 = process_cpu_seconds();
   const auto t0 = std::chrono::steady_clock::now();
   auto work = [&](uint32_t t) {
     ZSTD_DCtx* dctx = ZSTD_createDCtx();
@@ -113,6 +128,7 @@ Rate run_memory(const std::vector<std::vector<uint8_t>>& blobs, const std::vecto
   ZSTD_freeDDict(ddict);
   Rate rate;
   rate.seconds = seconds_since(t0);
+  rate.cpu_seconds = process_cpu_seconds() - cpu0;
   rate.pages = failed ? 0 : pages.load();
   rate.raw_bytes = rate.pages * page_bytes;
   rate.stored_bytes = stored;
@@ -238,9 +254,10 @@ int run_bench_loader(const BenchLoaderArgs& a) {
   if (m1.pages == 0 || mn.pages == 0) return fail(cmd, "in-memory zstd decompression failed", 1);
   const double cli = run_zstd_cli(raw_file, dict_file, page_bytes, store->desc().zstd_level, a.seconds * a.rounds);
 
-  std::printf("%-34s %10s %14s %14s\n", "", "pages/s", "decoded MB/s", "stored MB/s");
+  std::printf("%-34s %10s %14s %14s %14s\n", "", "pages/s", "decoded MB/s", "stored MB/s", "CPU us/page");
   auto row = [](const std::string& name, const Rate& r) {
-    std::printf("%-34s %10.0f %14.1f %14.1f\n", name.c_str(), r.pages_s(), r.raw_mb_s(), r.stored_mb_s());
+    std::printf("%-34s %10.0f %14.1f %14.1f %14.1f\n", name.c_str(), r.pages_s(), r.raw_mb_s(), r.stored_mb_s(),
+                r.cpu_us_per_page());
   };
   row("PageLoader, 1 worker", l1);
   row("PageLoader, " + std::to_string(n) + " workers", ln);
@@ -254,10 +271,17 @@ int run_bench_loader(const BenchLoaderArgs& a) {
   std::printf("\nloader / in-memory zstd, 1 thread:  %5.1f%%  (target >= 70%%)\n", 100.0 * r1);
   std::printf("loader / in-memory zstd, %u threads: %5.1f%%  (target >= 70%%)\n", n, 100.0 * rn);
   if (cli > 0) std::printf("loader (1 worker) / zstd -b:        %5.1f%%\n", 100.0 * l1.raw_mb_s() / cli);
+  const double cpu_ratio = m1.cpu_us_per_page() / l1.cpu_us_per_page();
+  std::printf("CPU per page, in-memory zstd / loader (1 worker, polling thread included): %5.1f%%\n", 100.0 * cpu_ratio);
+  std::printf("loader, 1 worker, per page: read %.3f ms, decode %.3f ms (wall, inside the worker)\n",
+              l1.read_ms / double(l1.pages), l1.decode_ms / double(l1.pages));
 
   if (!a.json_out.empty()) {
     auto j_rate = [](const Rate& r) {
-      return nlohmann::json{{"pages_per_s", r.pages_s()}, {"decoded_mb_per_s", r.raw_mb_s()}, {"stored_mb_per_s", r.stored_mb_s()}};
+      return nlohmann::json{{"pages_per_s", r.pages_s()},
+                            {"decoded_mb_per_s", r.raw_mb_s()},
+                            {"stored_mb_per_s", r.stored_mb_s()},
+                            {"cpu_us_per_page", r.cpu_us_per_page()}};
     };
     nlohmann::json j;
     j["store"] = store_path;
@@ -277,6 +301,7 @@ int run_bench_loader(const BenchLoaderArgs& a) {
     j["zstd_cli_decoded_mb_per_s"] = cli;
     j["loader_over_memory_1"] = r1;
     j["loader_over_memory_n"] = rn;
+    j["memory_over_loader_cpu_per_page"] = cpu_ratio;
     std::ofstream f(a.json_out);
     if (!f) return fail(cmd, "--json: cannot write " + a.json_out, 1);
     f << j.dump(2) << "\n";
