@@ -76,17 +76,20 @@ Result<BakeSummary> merge_stores(std::span<const std::string> parts, const std::
     for (const StoreEntry& e : r->entries()) {
       std::string message;
       if (r->read_blob(e.page, *decoder, &message) != PageError::none) {
-        writer.abandon();
+        writer.discard();
         return make_error(message + " (merge stopped; " + path + " not written)");
       }
       if (auto s = writer.append(e.page, decoder->blob(), e.blob_hash, e.page_hash); !s) {
-        writer.abandon();
+        writer.discard();
         return s.error();
       }
     }
   }
   auto file_bytes = writer.finish(header);
-  if (!file_bytes) return file_bytes.error();
+  if (!file_bytes) {
+    writer.discard();
+    return file_bytes.error();
+  }
   BakeSummary summary;
   summary.pages = rl.plan_pages;
   summary.raw_bytes = rl.plan_pages * ref.page_bytes();

@@ -130,4 +130,9 @@ void StoreWriter::abandon() {
   fd_.reset();
 }
 
+void StoreWriter::discard() {
+  ::unlink(partial_.c_str());  // before unlocking, so no other writer's new partial is removed
+  fd_.reset();
+}
+
 }  // namespace tvt::store_format

@@ -36,6 +36,8 @@ class StoreWriter {
   Result<uint64_t> finish(Header header);
   // Syncs what was written so far (after a cancel or a source error) and unlocks.
   void abandon();
+  // Deletes the partial (a failed merge: there is nothing to resume) and unlocks.
+  void discard();
 
   uint64_t records() const { return entries_.size(); }
   uint64_t stored_bytes() const { return stored_bytes_; }

@@ -301,6 +301,7 @@ TEST_F(BakeTest, ThreeShardsMergeToTheSingleBakeInAnyOrder) {
   ASSERT_FALSE(c.ok());
   EXPECT_NE(c.error().message.find(shards[1] + ": mip"), std::string::npos) << c.error().message;
   EXPECT_FALSE(fs::exists(path("bad.tvt")));
+  EXPECT_FALSE(fs::exists(path("bad.tvt.partial")));
 }
 
 TEST_F(BakeTest, MorePartsThanPagesGivesEmptyShardsThatStillMerge) {
