@@ -3,7 +3,8 @@
 // layout itself is in streaming/store_format.h.
 //
 // Errors follow vt/result.h: messages start with the file path, then the field
-// ("store.tvt: index entry 17 (mip 2, 3, 1): stored size 0 ...").
+// ("store.tvt: index entry 17 (mip 2 page (3,1)): stored size 0 ...",
+// "store.tvt: mip 3 page (5,2): blob checksum mismatch ...").
 #pragma once
 #include <cstdint>
 #include <memory>

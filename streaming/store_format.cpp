@@ -101,8 +101,9 @@ std::optional<Header> decode_header(std::span<const uint8_t> bytes, uint64_t fil
   h.desc.vt.log2_size = get_u32(p + off::log2_size);
   h.desc.vt.page_texels = get_u32(p + off::page_texels);
   h.desc.vt.border_texels = get_u32(p + off::border_texels);
-  const bool vt_ok = validate(h.desc.vt, path + ": header vt").ok();
-  if (!vt_ok) problems.push_back(validate(h.desc.vt, path + ": header vt").error().message);
+  const Status vt_status = validate(h.desc.vt, path + ": header vt");
+  const bool vt_ok = vt_status.ok();
+  if (!vt_ok) problems.push_back(vt_status.error().message);
 
   const uint32_t layer_count = get_u32(p + off::layer_count);
   bool layers_ok = layer_count >= 1 && layer_count <= k_max_layers;
