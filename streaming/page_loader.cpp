@@ -135,7 +135,9 @@ PageLoaderStats PageLoader::stats() const {
   std::lock_guard lock(mutex_);
   PageLoaderStats s = stats_;
   s.outstanding = uint32_t(queue_.size()) + loading_ + uint32_t(finished_.size());
-  s.staging_in_use = slots_count_ - uint32_t(free_slots_.size());
+  s.staging_in_use = uint32_t(std::count_if(slots_.begin(), slots_.end(), [](const Slot& slot) {
+    return slot.state == SlotState::staged;
+  }));
   return s;
 }
 

@@ -40,8 +40,12 @@ struct LoadedPage {
   double read_ms = 0, decode_ms = 0;
 };
 struct PageLoaderStats {
-  uint64_t requested = 0, loaded = 0, failed = 0, cancelled = 0, bytes_read = 0, bytes_decoded = 0;
-  uint32_t outstanding = 0, staging_in_use = 0;
+  uint64_t requested = 0, loaded = 0, failed = 0, cancelled = 0;  // loaded/failed/cancelled: as reported by poll()
+  uint64_t bytes_read = 0, bytes_decoded = 0;                       // compressed bytes read, page bytes decoded
+  uint32_t outstanding = 0;     // accepted requests not yet reported by poll() (queued, loading, finished)
+  uint32_t staging_in_use = 0;  // ok pages polled but not yet released
+  // Disjoint, so request() succeeds when outstanding + staging_in_use < staging_slots (it may
+  // also succeed at equality while unpolled failed/cancelled results, which hold no slot, count).
 };
 
 class PageLoader {

@@ -117,9 +117,13 @@ TEST_F(PageLoaderTest, RingBoundsOutstandingPlusStagedPages) {
   EXPECT_FALSE(loader.request(plan_[4], 4)) << "staged pages hold their slots until release";
   loader.release(done[0].staging);
   loader.release(done[0].staging);  // a second release is ignored
+  EXPECT_EQ(loader.stats().staging_in_use, 3u);
   EXPECT_TRUE(loader.request(plan_[4], 4));
   EXPECT_FALSE(loader.request(plan_[5], 5));
-  EXPECT_EQ(loader.stats().staging_in_use, 4u);
+  const PageLoaderStats s = loader.stats();
+  EXPECT_EQ(s.staging_in_use, 3u);  // polled, not released
+  EXPECT_EQ(s.outstanding, 1u);     // plan_[4], not yet polled
+  EXPECT_EQ(s.outstanding + s.staging_in_use, 4u);
 }
 
 TEST_F(PageLoaderTest, ManyThreadsWithRandomCancelReportEveryRequestExactlyOnce) {
