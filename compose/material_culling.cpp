@@ -31,6 +31,7 @@ MaterialCuller::MaterialCuller(const PackedScene& s) {
 }
 
 void MaterialCuller::set_params(const gpu::TvtComposeParams& p) {
+  params_ = p;
   reach_texels_.clear();
   layer_of_.clear();
   for (int n = 0; n < p.material_count; ++n) {
@@ -68,6 +69,37 @@ uint32_t MaterialCuller::mask(const PageId& page) const {
   const int64_t x0 = (int64_t(page.x) * P - B) << m, y0 = (int64_t(page.y) * P - B) << m;
   const int64_t x1 = (int64_t(page.x + 1) * P + B) << m, y1 = (int64_t(page.y + 1) * P + B) << m;
   return mask_rect(x0, y0, x1, y1);
+}
+
+void MaterialNeeds::merge(const MaterialNeeds& other) {
+  for (size_t n = 0; n < finest_level.size(); ++n) {
+    const uint32_t bit = 1u << n;
+    if ((other.mask & bit) && (!(mask & bit) || other.finest_level[n] < finest_level[n]))
+      finest_level[n] = other.finest_level[n];
+  }
+  mask |= other.mask;
+  meta_mask |= other.meta_mask;
+}
+
+MaterialNeeds MaterialCuller::needs(const PageId& page, uint32_t mask) const {
+  constexpr double k_margin = 1e-3;  // levels; fp32 log2 of the same product errs by < 1e-6
+  MaterialNeeds out;
+  const double footprint = std::ldexp(1.0, int(page.mip)) / double(std::max(params_.supersample, 1));
+  for (int n = 0; n < params_.material_count; ++n) {
+    const uint32_t bit = 1u << n;
+    if (!(mask & bit)) continue;
+    const gpu::TvtMaterial& m = params_.materials[n];
+    // material_lod() in compose_sample.glsl.
+    const double lod = std::log2(std::max(footprint, 1.0 / 256.0) * double(m.resolution) * 256.0 / double(m.period_fp));
+    const double level = std::clamp(lod - k_margin, 0.0, double(std::max(m.mip_count - 1, 0)));
+    out.mask |= bit;
+    out.finest_level[size_t(n)] = uint8_t(std::floor(level));
+    // The FBPB branch reads the meta-texture while fade = 1 - ramp(lod, lo, hi) > 0.
+    const bool fbpb = n > 0 && (m.mode == gpu::TVT_MODE_FBPB || m.mode == gpu::TVT_MODE_FBPB_DPT);
+    const double fade_end = m.fbpb_fade_hi > m.fbpb_fade_lo ? double(m.fbpb_fade_hi) : double(m.fbpb_fade_lo);
+    if (fbpb && m.meta_offset != gpu::TVT_NO_META && lod - k_margin < fade_end) out.meta_mask |= bit;
+  }
+  return out;
 }
 
 }  // namespace tvt

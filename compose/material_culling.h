@@ -7,6 +7,7 @@
 // twice the largest patch (corner centres lie up to 1.5 patches away), plus for FBPB half a
 // tiling period (a feature's centroid is at most half a tile from its texels).
 #pragma once
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -14,6 +15,16 @@
 #include "vt/vt_config.h"
 
 namespace tvt {
+
+// What composing a page reads of each material (render/material_uploader.h uploads just this).
+struct MaterialNeeds {
+  uint32_t mask = 0;       // bit n: material n and its weight layer (the culling mask)
+  uint32_t meta_mask = 0;  // bit n: material n's FBPB meta-texture
+  // Finest mip level of material n's texture that is read (meaningful where `mask` has n).
+  std::array<uint8_t, gpu::TVT_MAX_MATERIALS> finest_level{};
+  // The union: everything either reads.
+  void merge(const MaterialNeeds& other);
+};
 
 class MaterialCuller {
  public:
@@ -24,9 +35,16 @@ class MaterialCuller {
   uint32_t mask(const PageId& page) const;
   // The same for an arbitrary level-0 texel rectangle [x0, x1) x [y0, y1).
   uint32_t mask_rect(int64_t x0, int64_t y0, int64_t x1, int64_t y1) const;
+  // What composing `page` reads, for the materials in `mask` (mask(page), or every bit when
+  // culling is off). compose_sample.glsl reads material n's texture at the trilinear levels
+  // floor(l) and floor(l) + 1 of l = clamp(log2(footprint * R / T), 0, mips - 1), footprint =
+  // 2^mip / supersample, and its meta-texture only in FBPB modes while the FBPB fade is
+  // above 0 (l < fade_lod_hi). Conservative by 1e-3 levels against fp32 rounding.
+  MaterialNeeds needs(const PageId& page, uint32_t mask) const;
 
  private:
   int width_ = 0, height_ = 0, layers_ = 0, log2_vt_ = 0, page_ = 0, border_ = 0;
+  gpu::TvtComposeParams params_{};
   std::vector<int64_t> reach_texels_;  // per material
   std::vector<int> layer_of_;          // weight layer per material
   std::vector<uint32_t> nonzero_sat_;  // per layer summed-area table of (weight > 0), (W+1)*(H+1)

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 
+#include "compose/scene_identity.h"
 #include "render/feedback_compactor.h"
 #include "render/terrain_renderer.h"
 #include "render/vt_debug.h"
@@ -27,7 +28,9 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
   if (o.feedback_mode == FeedbackMode::None) return make_error("feedback_mode: the loop needs feedback");
   auto packed = pack_scene(assets, options_for(o.method));
   if (!packed) return packed.error();
-  auto vt = VtSystem::create(g, packed.value(), o.vt);
+  VtSystemOptions vto = o.vt;
+  if (vto.store && vto.scene_hash == 0) vto.scene_hash = scene_identity(assets.desc, o.method);
+  auto vt = VtSystem::create(g, packed.value(), vto);
   if (!vt) return vt.error();
   VtSystem& v = *vt.value();
   v.set_debug_view(o.debug_view);
@@ -65,7 +68,7 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
     // The newest compacted feedback whose fence has signalled (1 or 2 frames late); never a
     // wait. When none is ready the previous list stands, so requests keep flowing.
     for (uint64_t late = 1; late <= 2 && late <= f; ++late)
-      if (auto r = compactor.value()->try_read(f - late)) {
+      if (auto r = o.deterministic ? compactor.value()->read_blocking(f - late) : compactor.value()->try_read(f - late)) {
         feedback.clear();
         for (const auto& [page, count] : r->pages) feedback.push_back(PageFeedback{page, count});
         fr.feedback_pages = r->pages.size();
@@ -84,12 +87,17 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
     compactor.value()->submit(t.feedback_buffer(), f);
     v.end_frame();
     fr.vt = v.stats();
+    fr.completed = v.last_completed();
+    if (v.stored()) fr.store_errors = v.stored()->take_error_messages();
     fr.triangles = t.last_stats().triangles;
     fr.cpu_ms = ms_between(t0, t1);
     fr.gpu_ms = ms_between(t1, t2);
     fr.total_ms = ms_between(t0, std::chrono::steady_clock::now());
     sum.frames = f + 1;
     sum.pages_composed += fr.vt.composed;
+    sum.pages_loaded += fr.vt.stored.landed;
+    sum.load_failures += fr.vt.stored.failed;
+    sum.pages_missing += fr.vt.missing;
     sum.oversubscribed_frames += fr.vt.residency.oversubscribed ? 1u : 0u;
     sum.max_mip_bias = std::max(sum.max_mip_bias, fr.vt.residency.mip_bias);
     if (on_frame) {

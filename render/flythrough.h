@@ -28,6 +28,10 @@ struct FlythroughOptions {
   uint32_t max_anisotropy = 1;          // VT taps per mip along the footprint (1: isotropic; <= B)
   VtSystemOptions vt;
   int debug_view = 0;                   // TVT_VT_VIEW_*: 1 colours every texel by its data mip
+  // Reads each frame's feedback exactly one frame late, waiting for it if needed, so two runs
+  // of one path request the same pages at the same frames (comparisons, tests). Off: the
+  // newest ready feedback, never a wait (what an engine does).
+  bool deterministic = false;
 };
 
 struct FlythroughFrame {
@@ -38,6 +42,8 @@ struct FlythroughFrame {
   size_t feedback_pages = 0;
   uint64_t feedback_frames_late = 0;    // 0: no feedback yet
   VtFrameStats vt;
+  std::vector<std::string> store_errors;  // bad stored pages first seen this frame (each once)
+  std::vector<PageId> completed;          // pages that became resident this frame
   uint64_t triangles = 0;
   double cpu_ms = 0, gpu_ms = 0, total_ms = 0;
 };
@@ -45,6 +51,9 @@ struct FlythroughFrame {
 struct FlythroughSummary {
   uint32_t frames = 0;
   uint64_t pages_composed = 0;
+  uint64_t pages_loaded = 0;            // stored pages copied into the cache
+  uint64_t load_failures = 0;           // stored pages that failed reading or verification
+  uint64_t pages_missing = 0;           // requests the store had no page for
   uint32_t oversubscribed_frames = 0;
   uint32_t max_mip_bias = 0;
   uint64_t gpu_bytes = 0;

@@ -7,26 +7,14 @@
 #include <cstring>
 
 #include "shaders/shared/compose_bindings.h"
+#include "shaders/shared/compose_coord.h"
 
 namespace tvt {
-
-namespace {
-constexpr VkBufferUsageFlags k_storage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
-
-// Uploads a vector into a device-local storage buffer (at least 16 bytes: empty inputs bind a dummy).
-template <class T>
-vk::Buffer upload_vector(vk::Context& ctx, const std::vector<T>& data) {
-  const VkDeviceSize bytes = std::max<VkDeviceSize>(16, data.size() * sizeof(T));
-  vk::Buffer buffer = ctx.create_buffer(bytes, k_storage, false);
-  if (!data.empty()) ctx.upload(buffer, data.data(), data.size() * sizeof(T));
-  return buffer;
-}
-}  // namespace
 
 GpuComposer::~GpuComposer() = default;
 
 Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, const PackedScene& scene,
-                                                         uint32_t slots) {
+                                                         uint32_t slots, const GpuComposerOptions& options) {
   if (slots == 0 || slots > context.properties().limits.maxImageArrayLayers)
     return make_error("compose slots: must be between 1 and " +
                       std::to_string(context.properties().limits.maxImageArrayLayers) + ", got " +
@@ -40,9 +28,10 @@ Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, c
 
   c->params_buffer_ = context.create_buffer(sizeof(gpu::TvtComposeParams), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
   std::memcpy(c->params_buffer_.mapped(), &c->params_, sizeof(c->params_));
-  c->material_buffer_ = upload_vector(context, scene.material_texels);
-  c->meta_buffer_ = upload_vector(context, scene.meta_texels);
-  c->weight_buffer_ = upload_vector(context, scene.weights);
+  c->materials_ = std::make_unique<MaterialUploader>(context, scene);
+  if (options.poison_materials)
+    context.run_commands([&](VkCommandBuffer cmd) { c->materials_->fill(cmd, 0xffffffffu); });
+  if (!options.lazy_materials) c->materials_->upload_all();
   c->job_buffer_ = context.create_buffer(sizeof(gpu::TvtPageJob) * slots, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
   c->readback_buffer_ = context.create_buffer(VkDeviceSize(c->slot_texels_) * c->slot_texels_ * 4 * slots,
                                               VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
@@ -58,9 +47,9 @@ Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, c
   c->pipeline_ = context.create_compute_pipeline(shaders::compose_comp(), bindings, sizeof(gpu::TvtComposePush));
   c->descriptors_ = context.allocate_descriptor_set(c->pipeline_);
   c->descriptors_.write_buffer(TVT_BIND_COMPOSE_PARAMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->params_buffer_);
-  c->descriptors_.write_buffer(TVT_BIND_MATERIAL_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->material_buffer_);
-  c->descriptors_.write_buffer(TVT_BIND_META_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->meta_buffer_);
-  c->descriptors_.write_buffer(TVT_BIND_WEIGHTS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->weight_buffer_);
+  c->descriptors_.write_buffer(TVT_BIND_MATERIAL_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->materials_->texels());
+  c->descriptors_.write_buffer(TVT_BIND_META_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->materials_->meta());
+  c->descriptors_.write_buffer(TVT_BIND_WEIGHTS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->materials_->weights());
   c->descriptors_.write_buffer(TVT_BIND_PAGE_JOBS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->job_buffer_);
   c->descriptors_.write_storage_image(TVT_BIND_PAGE_OUTPUT, c->output_);
   context.run_commands([&](VkCommandBuffer cmd) {
@@ -69,7 +58,13 @@ Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, c
   return c;
 }
 
+const MaterialUploader& GpuComposer::all_materials() const {
+  materials_->upload_all();
+  return *materials_;
+}
+
 void GpuComposer::set_params(const gpu::TvtComposeParams& params) {
+  TVT_CHECK(materials_->same_layout(params));
   params_ = params;
   culler_->set_params(params);
   std::memcpy(params_buffer_.mapped(), &params_, sizeof(params_));
@@ -77,13 +72,16 @@ void GpuComposer::set_params(const gpu::TvtComposeParams& params) {
 
 void GpuComposer::record(VkCommandBuffer cmd, std::span<const PageJob> jobs) {
   TVT_CHECK(jobs.size() <= slots_);
-  if (jobs.empty()) return;
   auto* dst = static_cast<gpu::TvtPageJob*>(job_buffer_.mapped());
+  MaterialNeeds needed;  // what any of the pages reads
   for (size_t i = 0; i < jobs.size(); ++i) {
     TVT_CHECK(jobs[i].slot < slots_);
     const uint32_t mask = culling_ ? culler_->mask(jobs[i].page) : 0xffffffffu;
     dst[i] = gpu::TvtPageJob{jobs[i].page.mip, jobs[i].page.x, jobs[i].page.y, jobs[i].slot, mask, 0u, 0u, 0u};
+    if (params_.pattern == gpu::TVT_COMPOSE_PATTERN_NONE) needed.merge(culler_->needs(jobs[i].page, mask));
   }
+  materials_->record(cmd, needed);  // also with no jobs: the per-record counters restart
+  if (jobs.empty()) return;
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.handle());
   const VkDescriptorSet set = descriptors_.handle();
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.layout(), 0, 1, &set, 0, nullptr);

@@ -1,6 +1,11 @@
 // Host side of compose.comp: owns the scene buffers on the GPU and composes batches of pages
 // into layers of a storage image (RGBA8, (P+2B)^2 per layer). Planned once from a
 // PackedScene, then only records (STYLE #9). Not thread-safe; one queue.
+//
+// Materials are uploaded lazily by default (render/material_uploader.h): record() uploads what
+// its pages read for the first time (weight layer, texture levels, meta-texture; exactly as
+// compose/material_culling.h predicts) just before their dispatch. Output is byte-identical to
+// uploading everything at create().
 #pragma once
 #include <cstdint>
 #include <memory>
@@ -9,6 +14,7 @@
 
 #include "compose/material_culling.h"
 #include "compose/packed_scene.h"
+#include "render/material_uploader.h"
 #include "render/vk_context.h"
 #include "vt/vt_config.h"
 
@@ -19,14 +25,25 @@ struct PageJob {
   uint32_t slot = 0;  // output image layer
 };
 
+struct GpuComposerOptions {
+  // true: material data reaches the GPU with the first recorded page that reads it (the
+  // material, the levels of its texture, its meta-texture); false: create() uploads it all.
+  bool lazy_materials = true;
+  // Tests: fill the material buffers with 0xffffffff first, so that a read of anything not
+  // uploaded yet shows instead of reading whatever the allocation held.
+  bool poison_materials = false;
+};
+
 class GpuComposer {
  public:
   // slots: layers of the owned output image; also the most pages one dispatch composes.
-  static Result<std::unique_ptr<GpuComposer>> create(vk::Context& context, const PackedScene& scene, uint32_t slots);
+  static Result<std::unique_ptr<GpuComposer>> create(vk::Context& context, const PackedScene& scene, uint32_t slots,
+                                                     const GpuComposerOptions& options = {});
   ~GpuComposer();
 
-  // Replaces the parameter block (method, supersampling...) keeping the uploaded textures.
-  // The GPU must not be using the composer (call between batches).
+  // Replaces the parameter block (method, supersampling...) keeping the uploaded textures:
+  // `params` must come from the same scene (same material layout; checked). The GPU must not
+  // be using the composer (call between batches).
   void set_params(const gpu::TvtComposeParams& params);
   const gpu::TvtComposeParams& params() const { return params_; }
 
@@ -34,7 +51,9 @@ class GpuComposer {
   void set_culling(bool enabled) { culling_ = enabled; }
 
   // Records the composition of `jobs` into the output image, which must be in layout GENERAL
-  // (create() leaves it so). Jobs are copied into a host-visible ring; at most slots() jobs.
+  // (create() leaves it so), preceded by the upload of materials the jobs need for the first
+  // time. Jobs are copied into a host-visible buffer; at most slots() jobs. The commands of
+  // the previous record() must have completed, and `cmd` must be submitted.
   void record(VkCommandBuffer cmd, std::span<const PageJob> jobs);
 
   // Composes pages and reads them back (blocking; tools and tests). Any number of pages:
@@ -44,11 +63,17 @@ class GpuComposer {
   // Times `repeats` batches of `pages` on the GPU (submit + wait), returns seconds per batch.
   double time_batch(std::span<const PageId> pages, int repeats);
 
-  // The scene buffers (compose_sample.glsl's inputs), for passes that compose per pixel.
+  // The scene buffers (compose_sample.glsl's inputs), for passes that compose per pixel: such
+  // a pass may read any material, so the material accessors first upload every material that
+  // is not on the GPU yet (blocking, once).
   const vk::Buffer& params_buffer() const { return params_buffer_; }
-  const vk::Buffer& material_buffer() const { return material_buffer_; }
-  const vk::Buffer& meta_buffer() const { return meta_buffer_; }
-  const vk::Buffer& weight_buffer() const { return weight_buffer_; }
+  const vk::Buffer& material_buffer() const { return all_materials().texels(); }
+  const vk::Buffer& meta_buffer() const { return all_materials().meta(); }
+  const vk::Buffer& weight_buffer() const { return all_materials().weights(); }
+
+  // Material upload counters (what is on the GPU, bytes copied; `last_*`: by the latest
+  // record()). For per-frame statistics.
+  const MaterialUploadStats& upload_stats() const { return materials_->stats(); }
 
   vk::Image& output() { return output_; }
   const vk::Image& output() const { return output_; }
@@ -57,13 +82,16 @@ class GpuComposer {
 
  private:
   GpuComposer() = default;
+  const MaterialUploader& all_materials() const;
   vk::Context* context_ = nullptr;
   gpu::TvtComposeParams params_{};
   std::unique_ptr<MaterialCuller> culler_;
   bool culling_ = true;
   uint32_t slots_ = 0;
   uint32_t slot_texels_ = 0;
-  vk::Buffer params_buffer_, material_buffer_, meta_buffer_, weight_buffer_, job_buffer_, readback_buffer_;
+  // The const buffer accessors complete the lazy upload through it (a cache, not state).
+  std::unique_ptr<MaterialUploader> materials_;
+  vk::Buffer params_buffer_, job_buffer_, readback_buffer_;
   vk::Image output_;
   vk::ComputePipeline pipeline_;
   vk::DescriptorSet descriptors_;

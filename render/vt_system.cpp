@@ -10,6 +10,21 @@
 
 namespace tvt {
 
+std::string_view to_string(VtSource source) {
+  switch (source) {
+    case VtSource::procedural: return "procedural";
+    case VtSource::stored: return "stored";
+    case VtSource::hybrid: return "hybrid";
+  }
+  return "?";
+}
+
+std::optional<VtSource> vt_source_from_string(std::string_view text) {
+  for (VtSource s : {VtSource::procedural, VtSource::stored, VtSource::hybrid})
+    if (text == to_string(s)) return s;
+  return std::nullopt;
+}
+
 Result<std::unique_ptr<VtSystem>> VtSystem::create(vk::Context& context, const PackedScene& scene,
                                                    const VtSystemOptions& options) {
   VtConfig vt;
@@ -21,6 +36,15 @@ Result<std::unique_ptr<VtSystem>> VtSystem::create(vk::Context& context, const P
   ro.window_pages = options.window_pages;
   ro.max_requests_per_frame = options.page_budget;
   ro.pinned_mips = options.pinned_mips;
+  const bool streams = options.source != VtSource::procedural;
+  StoredProducerOptions lo = options.loader;
+  if (streams) {
+    if (!options.store) return make_error("source: '" + std::string(to_string(options.source)) + "' needs a page store");
+    // Async loads may be outstanding on top of the pages composed this frame; a synchronous
+    // run asks for exactly what a procedural run would, so its frames match one for one.
+    if (options.sync_loads) lo.staging_slots = std::max(lo.staging_slots, options.page_budget);
+    else ro.max_requests_per_frame = options.page_budget + lo.staging_slots;
+  }
   if (auto s = Residency::validate(vt, ro, "vt"); !s) return s.error();
   if (options.page_budget > options.cache_slots)
     return make_error("vt: page_budget (" + std::to_string(options.page_budget) + ") exceeds cache_slots (" +
@@ -33,6 +57,11 @@ Result<std::unique_ptr<VtSystem>> VtSystem::create(vk::Context& context, const P
   auto composer = GpuComposer::create(context, scene, options.cache_slots);
   if (!composer) return composer.error();
   v->composer_ = std::move(composer.value());
+  if (streams) {
+    auto stored = StoredProducer::create(context, options.store, vt, options.scene_hash, lo);
+    if (!stored) return stored.error();
+    v->stored_ = std::move(stored.value());
+  }
 
   const PageTable& table = v->residency_.page_table();
   const auto entries = table.all_entries();
@@ -69,18 +98,74 @@ VtSystem::~VtSystem() {
   if (sampler_ != VK_NULL_HANDLE) vkDestroySampler(context_->device(), sampler_, nullptr);
 }
 
+void VtSystem::collect_loads() {
+  const size_t landed_before = landing_.size();
+  load_failed_.clear();
+  load_cancelled_.clear();
+  stored_->poll(landing_, load_failed_, load_cancelled_);
+  for (size_t i = landed_before; i < landing_.size(); ++i) loading_.erase(landing_[i].page.pack());
+  for (const PageRequest& r : load_cancelled_) {
+    loading_.erase(r.page.pack());
+    residency_.cancelled(r.page);
+  }
+  for (const PageRequest& r : load_failed_) {
+    loading_.erase(r.page.pack());
+    // Hybrid: compose the page into the slot it was meant for; otherwise its entries keep
+    // pointing at the nearest resident ancestor.
+    if (options_.source == VtSource::hybrid && jobs_.size() < composer_->slots()) {
+      jobs_.push_back(PageJob{r.page, r.slot});
+      ++stats_.fallback_composed;
+    } else {
+      residency_.failed(r.page);
+    }
+  }
+}
+
 void VtSystem::begin_frame(uint64_t frame, uint32_t camera_x, uint32_t camera_y, std::span<const PageFeedback> feedback) {
   stats_ = VtFrameStats{};
+  jobs_.clear();
+  landing_.clear();
+  if (stored_) {
+    stored_->begin_frame();
+    collect_loads();
+  }
   residency_.set_centre(camera_x, camera_y);
   residency_.begin_frame(frame, feedback);
+  if (stored_)
+    for (const PageId& p : residency_.stale_in_flight(options_.cancel_after_frames))
+      if (loading_.contains(p.pack())) stored_->cancel(p);
+
   const auto t0 = std::chrono::steady_clock::now();
-  jobs_.clear();
-  while (jobs_.size() < options_.page_budget) {
+  uint32_t composed_new = 0;
+  for (;;) {
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     if (ms > options_.time_budget_ms) break;
+    if (options_.source == VtSource::stored && !stored_->can_accept()) break;
     auto r = residency_.next_request();
     if (!r) break;
+    if (stored_ && stored_->has(r->page)) {
+      if (!stored_->can_accept() || !stored_->request(*r)) {
+        residency_.cancelled(r->page);  // ring full: asked again next frame
+        break;
+      }
+      loading_.insert(r->page.pack());
+      continue;
+    }
+    if (options_.source == VtSource::stored) {
+      residency_.failed(r->page);  // not in the store: the ancestor stands in
+      ++stats_.missing;
+      continue;
+    }
+    if (composed_new >= options_.page_budget || jobs_.size() >= composer_->slots()) {
+      residency_.cancelled(r->page);
+      break;
+    }
     jobs_.push_back(PageJob{r->page, r->slot});
+    ++composed_new;
+  }
+  if (stored_ && options_.sync_loads) {
+    stored_->wait_idle();
+    collect_loads();
   }
   stats_.select_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   stats_.composed = uint32_t(jobs_.size());
@@ -94,6 +179,11 @@ void VtSystem::begin_frame(uint64_t frame, uint32_t camera_x, uint32_t camera_y,
 
 void VtSystem::record(VkCommandBuffer cmd) {
   composer_->record(cmd, jobs_);
+  stats_.materials = composer_->upload_stats();
+  if (stored_) {
+    stored_->record(cmd, composer_->output());
+    stats_.stored = stored_->stats();
+  }
   TVT_CHECK(pending_updates_.size() <= update_capacity_);
   auto* dst = static_cast<uint32_t*>(update_buffer_.mapped());
   const PageTable& table = residency_.page_table();
@@ -114,23 +204,34 @@ void VtSystem::record(VkCommandBuffer cmd) {
   // Composed texels and scattered entries become visible to every later read.
   VkMemoryBarrier barrier{};
   barrier.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
-  barrier.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
+  barrier.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
   barrier.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_TRANSFER_READ_BIT;
-  vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+  vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
                        VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT |
                            VK_PIPELINE_STAGE_TRANSFER_BIT,
                        0, 1, &barrier, 0, nullptr, 0, nullptr);
 }
 
 void VtSystem::end_frame() {
-  for (const PageJob& j : jobs_) residency_.complete(j.page);
+  completed_.clear();
+  for (const PageJob& j : jobs_) {
+    residency_.complete(j.page);
+    completed_.push_back(j.page);
+  }
   jobs_.clear();
+  for (const PageRequest& r : landing_) {
+    residency_.complete(r.page);
+    completed_.push_back(r.page);
+  }
+  landing_.clear();
+  if (stored_) stored_->end_frame();
   stats_.residency = residency_.stats();
 }
 
 uint64_t VtSystem::gpu_bytes() const {
   const uint64_t slot = uint64_t(vt_.slot_texels()) * vt_.slot_texels() * 4;
-  return entry_buffer_.size() + info_buffer_.size() + slot * options_.cache_slots;
+  return entry_buffer_.size() + info_buffer_.size() + slot * options_.cache_slots +
+         (stored_ ? stored_->gpu_bytes() : 0);
 }
 
 }  // namespace tvt

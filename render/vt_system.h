@@ -1,28 +1,45 @@
-// The virtual texture on the GPU: residency policy (vt/), procedural producer (GpuComposer
-// into the physical cache), page table (device buffer updated by a GPU scatter) and the
-// state a sampling pass binds (TvtVtInfo, entries, cache image + sampler).
+// The virtual texture on the GPU: residency policy (vt/), producers (GpuComposer composing
+// into the physical cache; StoredProducer streaming baked pages into it), page table (device
+// buffer updated by a GPU scatter) and the state a sampling pass binds (TvtVtInfo, entries,
+// cache image + sampler).
+//
+// Sources: procedural (every page composed), stored (every page read from a baked store; a
+// page the store lacks or that fails verification falls back to its nearest resident
+// ancestor), hybrid (stored where the store has a good page, composed elsewhere and instead
+// of a bad stored page).
 //
 // Frame protocol (single queue; the caller waits for a frame's fence before the next
 // begin_frame, so host-visible buffers are never written while the GPU reads them):
 //   begin_frame(frame, camera texel, feedback)  — CPU: LRU, requests within the budgets
 //   record(cmd)                                 — compose requested pages, scatter table updates
 //   ... the caller records passes that sample (bind info_buffer/entry_buffer/cache/sampler) ...
-//   end_frame()                                 — after the fence: requested pages become
-//                                                 resident (visible from the next frame on)
+//   end_frame()                                 — after the fence: composed and landed pages
+//                                                 become resident (visible from the next frame)
+// Stored pages load on the loader's threads across frames: one requested in frame f lands in
+// the first frame after it finished (or, with sync_loads, in frame f itself, which makes a
+// stored run request and show exactly what a procedural run does).
 #pragma once
 #include <chrono>
 #include <cstdint>
 #include <memory>
+#include <optional>
+#include <string_view>
+#include <unordered_set>
 #include <span>
 #include <vector>
 
 #include "compose/packed_scene.h"
 #include "render/gpu_composer.h"
+#include "render/stored_producer.h"
 #include "render/vk_context.h"
 #include "shaders/shared/vt_types.h"
 #include "vt/residency.h"
 
 namespace tvt {
+
+enum class VtSource { procedural, stored, hybrid };
+std::string_view to_string(VtSource source);
+std::optional<VtSource> vt_source_from_string(std::string_view text);
 
 struct VtSystemOptions {
   uint32_t cache_slots = 256;          // physical cache pages ((P+2B)^2 RGBA8 each)
@@ -30,11 +47,21 @@ struct VtSystemOptions {
   uint32_t page_budget = 32;           // pages composed per frame at most
   double time_budget_ms = 1e9;         // CPU time for request selection per frame
   uint32_t pinned_mips = 1;            // coarsest mips kept resident
+  VtSource source = VtSource::procedural;
+  std::shared_ptr<const PageStoreReader> store;  // required for stored and hybrid
+  StoredProducerOptions loader;        // threads, staging ring
+  uint32_t cancel_after_frames = 4;    // loads no frame has needed for this long are cancelled
+  bool sync_loads = false;             // wait for this frame's loads (comparisons, tests)
+  uint64_t scene_hash = 0;             // checked against the store's (0: unchecked)
 };
 
 struct VtFrameStats {
   ResidencyStats residency;
-  uint32_t composed = 0;               // pages composed this frame
+  uint32_t composed = 0;               // pages composed this frame (incl. fallbacks)
+  uint32_t fallback_composed = 0;      // ... of which instead of a bad stored page (hybrid)
+  uint32_t missing = 0;                // requests the store could not serve (stored source)
+  StoredFrameStats stored;             // loader activity (stored and hybrid sources)
+  MaterialUploadStats materials;       // lazy material upload (what this frame's pages needed first)
   uint32_t table_updates = 0;          // entries scattered this frame
   double select_ms = 0;                // CPU time spent choosing requests
 };
@@ -50,6 +77,8 @@ class VtSystem {
   void end_frame();
 
   const VtFrameStats& stats() const { return stats_; }
+  // Pages that became resident in the last end_frame() (composed or landed), in that order.
+  const std::vector<PageId>& last_completed() const { return completed_; }
   // Debug view for sampling passes (TVT_VT_VIEW_*), applied from the next begin_frame().
   void set_debug_view(int view) { debug_view_ = view; }
   const Residency& residency() const { return residency_; }
@@ -58,6 +87,7 @@ class VtSystem {
   const vk::Image& cache() const { return composer_->output(); }
   VkSampler sampler() const { return sampler_; }
   GpuComposer& composer() { return *composer_; }
+  StoredProducer* stored() { return stored_.get(); }
   // Bytes of GPU memory: page table + info + cache.
   uint64_t gpu_bytes() const;
 
@@ -67,13 +97,18 @@ class VtSystem {
   VtConfig vt_;
   VtSystemOptions options_;
   Residency residency_;
+  void collect_loads();
   std::unique_ptr<GpuComposer> composer_;
+  std::unique_ptr<StoredProducer> stored_;
+  std::vector<PageRequest> landing_, load_failed_, load_cancelled_;
+  std::unordered_set<uint64_t> loading_;   // pages with a load outstanding
   vk::Buffer info_buffer_, entry_buffer_, update_buffer_;
   uint32_t update_capacity_ = 0;
   vk::ComputePipeline scatter_;
   vk::DescriptorSet scatter_set_;
   VkSampler sampler_ = VK_NULL_HANDLE;
   std::vector<PageJob> jobs_;
+  std::vector<PageId> completed_;
   std::vector<PageTableUpdate> pending_updates_;
   VtFrameStats stats_;
   int debug_view_ = 0;

@@ -7,6 +7,7 @@
 #include "shared/compose_types.h"
 #include "shared/hash.h"
 #include "shared/compose_bindings.h"
+#include "shared/compose_coord.h"
 
 layout(local_size_x = TVT_COMPOSE_GROUP, local_size_y = TVT_COMPOSE_GROUP, local_size_z = 1) in;
 
@@ -31,6 +32,10 @@ void main() {
   const int64_t last = (int64_t(1) << (P.log2_vt - mip)) - 1;
   const int64_t x = clamp(int64_t(job.page_x) * int64_t(P.page_texels) - int64_t(P.border_texels) + int64_t(t.x), int64_t(0), last);
   const int64_t y = clamp(int64_t(job.page_y) * int64_t(P.page_texels) - int64_t(P.border_texels) + int64_t(t.y), int64_t(0), last);
+  if (P.pattern == TVT_COMPOSE_PATTERN_COORDS) {  // tests: every texel names itself
+    imageStore(page_out, ivec3(t, int(job.slot)), unpackUnorm4x8(tvt_coord_word(mip, x, y)));
+    return;
+  }
   const int64_t s = int64_t(P.supersample);
   const int sub_shift = mip + TVT_FIXED_BITS;
   const float footprint = exp2(float(mip)) / float(s);

@@ -299,6 +299,35 @@ TEST(Residency, FailedPageFallsBackAndIsRetriedLater) {
   EXPECT_EQ(batch[0].page, (PageId{4, 1, 1}));
 }
 
+TEST(Residency, CancelledPageIsFreedAndRequeuedWithoutBackOff) {
+  const VtConfig c = make_config(12);
+  ResidencyOptions o;
+  o.slot_count = 16;
+  o.retry_after_frames = 30;
+  Residency res(c, o);
+  const std::vector<PageFeedback> fb{{{4, 1, 1}, 9}};
+  res.begin_frame(1, fb);
+  auto batch = res.take_requests();
+  ASSERT_EQ(batch.size(), 2u);
+  res.complete(batch[0].page);
+  const uint32_t slot = batch[1].slot;
+  EXPECT_TRUE(res.stale_in_flight(0).empty());  // seen this frame
+  // The camera moves away: the page stays in flight but goes stale.
+  res.begin_frame(2, {});
+  res.begin_frame(3, {});
+  EXPECT_TRUE(res.stale_in_flight(2).empty());
+  EXPECT_EQ(res.stale_in_flight(1), std::vector<PageId>{batch[1].page});
+  res.cancelled(batch[1].page);
+  EXPECT_EQ(res.stats().cancelled, 1u);
+  EXPECT_FALSE(res.slots().is_allocated(slot));
+  EXPECT_FALSE(res.is_in_flight(batch[1].page));
+  EXPECT_EQ(res.page_table().lookup(3000, 3000, 4), pack_entry(batch[0].slot, 5));
+  res.begin_frame(4, fb);  // wanted again: queued at once, unlike a failed page
+  batch = res.take_requests();
+  ASSERT_EQ(batch.size(), 1u);
+  EXPECT_EQ(batch[0].page, (PageId{4, 1, 1}));
+}
+
 TEST(Residency, OversubscriptionRaisesBiasFinishesAndRecovers) {
   const VtConfig c = make_config(16);  // 512 pages per side at mip 0
   ResidencyOptions o;

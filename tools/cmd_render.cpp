@@ -13,6 +13,7 @@
 
 #include "compose/packed_scene.h"
 #include "render/flythrough.h"
+#include "streaming/page_store.h"
 #include "tools/cli_common.h"
 #include "tools/commands.h"
 
@@ -25,6 +26,11 @@ struct RenderArgs {
   std::string method = "fbpb+dpt2";
   std::string gpu_name;
   std::string format = "png";
+  std::string source = "procedural";
+  std::string store;
+  uint32_t loader_threads = 2;
+  uint32_t staging = 64;
+  bool sync_loads = false;
   uint32_t frames = 120;
   uint32_t every = 10;
   uint32_t width = 640, height = 360;
@@ -48,6 +54,18 @@ int run_render(const RenderArgs& a) {
     return fail(cmd, "--width/--height: must be between 16 and 8192", 2);
   if (!(a.fps > 0.0 && a.fps <= 1000.0)) return fail(cmd, "--fps: must be in (0, 1000]", 2);
   if (a.format != "png" && a.format != "exr") return fail(cmd, "--format: png or exr", 2);
+  const auto source = vt_source_from_string(a.source);
+  if (!source) return fail(cmd, "--source: procedural, stored or hybrid, got '" + a.source + "'", 2);
+  if (*source != VtSource::procedural && a.store.empty()) return fail(cmd, "--store: --source " + a.source + " needs a page store (terravt bake)", 2);
+  if (*source == VtSource::procedural && !a.store.empty()) return fail(cmd, "--store: only used with --source stored or hybrid", 2);
+  if (a.loader_threads < 1 || a.loader_threads > 64) return fail(cmd, "--loader-threads: must be between 1 and 64", 2);
+  if (a.staging < 1 || a.staging > 4096) return fail(cmd, "--staging: must be between 1 and 4096", 2);
+  std::shared_ptr<const PageStoreReader> store;
+  if (!a.store.empty()) {
+    auto opened = PageStoreReader::open(a.store);
+    if (!opened) return fail(cmd, "--store: " + opened.error().message, 2);
+    store = std::move(opened.value());
+  }
   std::error_code ec;
   std::filesystem::create_directories(a.out, ec);
   if (ec || !std::filesystem::is_directory(a.out)) return fail(cmd, "--out: cannot create folder " + a.out, 2);
@@ -70,10 +88,15 @@ int run_render(const RenderArgs& a) {
   fo.vt.cache_slots = a.cache_slots;
   fo.vt.page_budget = a.page_budget;
   fo.vt.window_pages = a.window;
+  fo.vt.source = *source;
+  fo.vt.store = store;
+  fo.vt.loader.threads = a.loader_threads;
+  fo.vt.loader.staging_slots = a.staging;
+  fo.vt.sync_loads = a.sync_loads;
   fo.debug_view = a.debug_mips ? 1 : 0;
-  std::printf("terravt render: %s, V = 2^%u, %ux%u, %u frames, method %s, cache %u pages, budget %u/frame, device %s\n",
+  std::printf("terravt render: %s, V = 2^%u, %ux%u, %u frames, method %s, source %s, cache %u pages, budget %u/frame, device %s\n",
               assets->desc.source_path.c_str(), assets->desc.vt.log2_size, a.width, a.height, a.frames,
-              a.method.c_str(), a.cache_slots, a.page_budget, g.device_name().c_str());
+              a.method.c_str(), a.source.c_str(), a.cache_slots, a.page_budget, g.device_name().c_str());
   uint32_t written = 0;
   std::string write_error;
   auto summary = run_flythrough(g, assets.value(), fo, [&](const FlythroughFrame& fr, const FlythroughViews& views) {
@@ -112,12 +135,21 @@ int run_render(const RenderArgs& a) {
     j["mip_bias"] = s.residency.mip_bias;
     j["oversubscribed"] = s.residency.oversubscribed;
     j["table_updates"] = s.table_updates;
+    j["materials"] = {{"resident", s.materials.resident}, {"uploaded_bytes", s.materials.last_bytes},
+                      {"uploaded_total_bytes", s.materials.bytes_uploaded}, {"all_bytes", s.materials.bytes_total}};
+    if (*source != VtSource::procedural) {
+      j["stored"] = {{"requested", s.stored.requested}, {"landed", s.stored.landed}, {"failed", s.stored.failed},
+                     {"cancelled", s.stored.cancelled}, {"outstanding", s.stored.outstanding},
+                     {"staging_in_use", s.stored.staging_in_use}, {"read_ms", s.stored.read_ms},
+                     {"decode_ms", s.stored.decode_ms}, {"missing", s.missing}, {"fallback_composed", s.fallback_composed}};
+    }
+    for (const std::string& e : fr.store_errors) std::fprintf(stderr, "\n  bad page: %s", e.c_str());
     j["triangles"] = fr.triangles;
     j["ms"] = {{"select", s.select_ms}, {"cpu", fr.cpu_ms}, {"gpu", fr.gpu_ms}, {"total", fr.total_ms}};
     stats_file << j.dump() << "\n";
     if (!a.quiet)
       std::fprintf(stderr, "\r  frame %u/%u  %6.1f ms  resident %u  +%u pages  bias %u%s   ", fr.index + 1, a.frames,
-                   fr.total_ms, s.residency.resident, s.composed, s.residency.mip_bias,
+                   fr.total_ms, s.residency.resident, s.composed + s.stored.landed, s.residency.mip_bias,
                    s.residency.oversubscribed ? "  OVERSUBSCRIBED" : "");
     return true;
   });
@@ -125,10 +157,14 @@ int run_render(const RenderArgs& a) {
   if (!write_error.empty()) return fail(cmd, write_error, 1);
   if (!summary) return fail(cmd, summary.error().message, 2);
   const FlythroughSummary& s = summary.value();
-  std::printf("%u frames in %.1f s (%.1f ms/frame), %llu pages composed, max mip bias %u%s\n", s.frames, s.seconds,
-              1000.0 * s.seconds / s.frames, (unsigned long long)s.pages_composed, s.max_mip_bias,
+  std::printf("%u frames in %.1f s (%.1f ms/frame), %llu pages composed, %llu loaded, max mip bias %u%s\n", s.frames,
+              s.seconds, 1000.0 * s.seconds / s.frames, (unsigned long long)s.pages_composed,
+              (unsigned long long)s.pages_loaded, s.max_mip_bias,
               s.oversubscribed_frames ? (", oversubscribed in " + std::to_string(s.oversubscribed_frames) + " frames").c_str()
                                       : "");
+  if (s.load_failures || s.pages_missing)
+    std::printf("store: %llu pages failed verification or reading (each reported once above), %llu requests not in the store\n",
+                (unsigned long long)s.load_failures, (unsigned long long)s.pages_missing);
   std::printf("GPU memory: cache + page table %.1f MB; wrote %u frames and stats.jsonl to %s\n",
               double(s.gpu_bytes) / 1048576.0, written, a.out.c_str());
   return 0;
@@ -150,6 +186,11 @@ const CommandRegistrar k_register{
       app.add_option("--feedback-divisor", a->feedback_divisor, "N: one feedback texel per N x N pixels")->capture_default_str();
       app.add_option("--window", a->window, "Page-table window per mip (pages, power of two)")->capture_default_str();
       app.add_option("--format", a->format, "Frame format: png or exr")->capture_default_str();
+      app.add_option("--source", a->source, "Pages from: procedural (composed), stored (a baked store) or hybrid")->capture_default_str();
+      app.add_option("--store", a->store, "Page store for --source stored|hybrid (terravt bake)");
+      app.add_option("--loader-threads", a->loader_threads, "Store reader/decoder threads")->capture_default_str();
+      app.add_option("--staging", a->staging, "Stored pages staged at once (loads outstanding at most)")->capture_default_str();
+      app.add_flag("--sync-loads", a->sync_loads, "Wait for each frame's stored pages (frame-exact comparisons)");
       app.add_option("--gpu", a->gpu_name, "Vulkan device name substring or index");
       app.add_flag("--quiet", a->quiet, "No progress line");
       app.add_flag("--debug", a->debug, "With each written frame, also write the cache atlas, page table and feedback images");

@@ -205,6 +205,22 @@ void Residency::failed(const PageId& page) {
   ++stats_.failed;
 }
 
+void Residency::cancelled(const PageId& page) {
+  const auto it = pages_.find(page.pack());
+  TVT_CHECK(it != pages_.end() && it->second.state == State::in_flight);
+  slots_.free(it->second.slot);
+  pages_.erase(it);
+  ++stats_.cancelled;
+}
+
+std::vector<PageId> Residency::stale_in_flight(uint64_t frames) const {
+  std::vector<PageId> out;
+  for (const auto& [key, r] : pages_)
+    if (r.state == State::in_flight && r.last_seen + frames < frame_) out.push_back(PageId::unpack(key));
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
 const ResidencyStats& Residency::stats() const {
   stats_.resident = uint32_t(table_.mapped_count());
   stats_.in_flight = uint32_t(pages_.size() - table_.mapped_count());

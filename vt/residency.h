@@ -83,6 +83,7 @@ struct ResidencyStats {
   uint32_t issued = 0;            // (page, slot) pairs handed out by next_request()
   uint32_t produced = 0;          // complete() calls since begin_frame
   uint32_t failed = 0;            // failed() calls since begin_frame
+  uint32_t cancelled = 0;         // cancelled() calls since begin_frame
   uint32_t evicted = 0;           // pages unmapped to free their slot
   uint32_t invalid_feedback = 0;  // feedback entries naming no page of this VT (ignored)
   uint32_t resident = 0;          // mapped pages
@@ -119,6 +120,13 @@ class Residency {
   // The producer could not make the page: its slot is freed; its entries keep pointing at the
   // nearest resident ancestor. Fatal if `page` is not in flight.
   void failed(const PageId& page);
+  // The request was withdrawn (no longer wanted, or the producer had no room): the slot is
+  // freed and the page may be queued again next frame, without the failure back-off.
+  // Fatal if `page` is not in flight.
+  void cancelled(const PageId& page);
+  // Pages in flight that no frame has needed for more than `frames` frames (a camera cut left
+  // them behind): candidates for cancellation by producers that can still withdraw them.
+  std::vector<PageId> stale_in_flight(uint64_t frames) const;
 
   const ResidencyStats& stats() const;
   uint32_t mip_bias() const { return bias_; }

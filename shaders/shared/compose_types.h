@@ -66,7 +66,7 @@ struct TvtComposeParams {
   int dpt_layer_limit;    // 0: all layers; else at most this many DPT layers
   int supersample;        // s: s*s sub-samples per texel (1 = direct)
   float linear_boost;     // Bloom: normalised weights sum to this, then clamped (>= 1)
-  int pad0;
+  int pattern;            // TVT_COMPOSE_PATTERN_* (compose_coord.h): 0 = the composition
   TvtMaterial materials[TVT_MAX_MATERIALS];
 };
 

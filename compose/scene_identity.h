@@ -1,0 +1,16 @@
+// A stable 64-bit identity of "what a page of this scene looks like": the scene description
+// (as canonical JSON), the transition method and the page-format version. A baked store records
+// it, so pages baked from another scene or method are refused instead of shown.
+// Limit: image files named by the scene are identified by path, size and modification time,
+// not by their bytes (hashing every texture at startup would cost more than it protects).
+#pragma once
+#include <cstdint>
+
+#include "compose/packed_scene.h"
+#include "compose/scene.h"
+
+namespace tvt {
+
+uint64_t scene_identity(const SceneDesc& scene, Method method);
+
+}  // namespace tvt

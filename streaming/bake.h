@@ -1,0 +1,58 @@
+// Writing page stores: bake (resumable, sharded), merge shards, verify. docs/page-store.md.
+#pragma once
+#include <cstdint>
+#include <functional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "streaming/page_store.h"
+
+namespace tvt {
+
+// Produces raw pages (page_bytes each) for a batch of page ids, in order. Called on the baking
+// thread only (GPU composer or CPU reference live behind it). `out` arrives empty.
+using PageSource = std::function<Status(std::span<const PageId> pages, std::vector<std::vector<uint8_t>>& out)>;
+
+struct BakeProgress {
+  uint64_t done = 0, total = 0, resumed = 0;  // pages in the file so far (resumed ones included), of this store
+  uint64_t raw_bytes = 0, stored_bytes = 0;   // of the pages done
+  double seconds = 0, eta_seconds = 0;        // this run; ETA from this run's page rate
+};
+struct BakeOptions {
+  uint32_t threads = 0;      // compression workers; 0 = hardware_concurrency
+  uint32_t batch_pages = 32; // pages asked from the source at once (1..4096)
+  bool resume = true;        // continue `<path>.partial` if it is a prefix of this same bake
+  uint32_t shard_index = 0, shard_count = 1;
+  std::function<void(const BakeProgress&)> progress;  // called after every batch, on the baking thread
+  std::function<bool()> cancelled;  // polled between batches; true: stop, keep the .partial (resumable)
+};
+struct BakeSummary {
+  uint64_t pages = 0, resumed_pages = 0, raw_bytes = 0, stored_bytes = 0, file_bytes = 0;
+  double seconds = 0;
+  std::string resume_note;  // why an existing .partial was not resumed (empty: none, or resumed)
+};
+
+// Writes `path` atomically: everything goes to `<path>.partial` (records appended in plan order,
+// each self-describing so a resume can find the last complete one), then index + header, fsync,
+// rename. An existing store at `path` is untouched until the rename. The result is
+// byte-identical whatever the thread count and however often it was interrupted and resumed.
+// The plan must be non-empty, hold no duplicates and only pages valid for desc.vt.
+// Cancellation returns an error ("... cancelled ...") and keeps the .partial.
+Result<BakeSummary> bake_store(const std::string& path, const StoreDesc& desc, std::span<const PageId> plan,
+                               const PageSource& source, const BakeOptions& options);
+
+// Joins shard stores (any order given; each knows its i/n, plan size and plan hash) into one
+// store byte-identical to the single (unsharded) bake of the same plan. Checks they belong to
+// the same bake and none is missing/duplicated; writes atomically.
+Result<BakeSummary> merge_stores(std::span<const std::string> parts, const std::string& path);
+
+// Page-by-page verification for `terravt verify`: every problem, one line each. An error only
+// when the file cannot be opened at all; a damaged header or index is a problem line.
+struct VerifyReport {
+  uint64_t pages = 0, ok = 0;
+  std::vector<std::string> problems;
+};
+Result<VerifyReport> verify_store(const std::string& path, uint32_t threads = 0);
+
+}  // namespace tvt

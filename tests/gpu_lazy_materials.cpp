@@ -1,0 +1,228 @@
+// Lazy material upload (render/material_uploader.h, issue 3 deliverable 3): a material's
+// weight layer, texture levels and meta-texture reach the GPU with the first recorded page
+// that reads them (compose/material_culling.h MaterialNeeds), never for pages that exclude the
+// material — and the composed pages are byte-identical to uploading everything at create(),
+// for every method. The lazy composers run with poisoned buffers, so a read of anything not
+// uploaded yet would show.
+#include <gtest/gtest.h>
+
+#include <bit>
+#include <map>
+
+#include "compose/material_culling.h"
+#include "compose/packed_scene.h"
+#include "compose/scene.h"
+#include "render/gpu_composer.h"
+#include "support/gpu_test.h"
+
+using namespace tvt;
+
+namespace {
+
+const SceneAssets& default_assets() {
+  static const SceneAssets assets = [] {
+    SceneDesc d = default_scene();
+    auto a = load_scene_assets(d);
+    TVT_CHECK(a.ok());
+    return std::move(a.value());
+  }();
+  return assets;
+}
+
+// Bytes the uploader copies for `needs`, from the packed layout: the texture levels from the
+// finest needed to the coarsest, the meta-texture (two words per texel), the weight layer.
+uint64_t bytes_of(const PackedScene& s, const MaterialNeeds& needs) {
+  uint64_t bytes = 0;
+  for (int n = 0; n < s.params.material_count; ++n) {
+    if (!(needs.mask & (1u << n))) continue;
+    const gpu::TvtMaterial& m = s.params.materials[n];
+    for (int l = needs.finest_level[size_t(n)]; l < m.mip_count; ++l)
+      bytes += 4ull * uint64_t(m.resolution >> l) * uint64_t(m.resolution >> l);
+    if ((needs.meta_mask & (1u << n)) && m.meta_offset != gpu::TVT_NO_META) bytes += 8ull * uint64_t(m.resolution) * uint64_t(m.resolution);
+    bytes += 4ull * uint64_t(s.params.weight_width) * uint64_t(s.params.weight_height);
+  }
+  return bytes;
+}
+
+MaterialNeeds needs_of(const PackedScene& s, const std::vector<PageId>& pages) {
+  const MaterialCuller culler(s);
+  MaterialNeeds needs;
+  for (const PageId& p : pages) needs.merge(culler.needs(p, culler.mask(p)));
+  return needs;
+}
+
+std::vector<PageId> concat(std::vector<PageId> a, const std::vector<PageId>& b) {
+  a.insert(a.end(), b.begin(), b.end());
+  return a;
+}
+
+GpuComposerOptions lazy_poisoned() {
+  GpuComposerOptions o;
+  o.poison_materials = true;
+  return o;
+}
+
+struct PageSets {
+  std::vector<PageId> without;  // pages whose masks all exclude `material`, in transitions of others
+  std::vector<PageId> with;     // pages in a transition that includes `material`
+  int material = 0;
+};
+
+// Scans mip-0 and mip-1 pages for the feature material (it has a meta-texture) absent from
+// transition pages of at least two other materials, and present in transitions of three.
+PageSets find_pages(const PackedScene& s, const VtConfig& vt, int material) {
+  const MaterialCuller culler(s);
+  PageSets sets;
+  sets.material = material;
+  const uint32_t bit = 1u << material;
+  for (uint32_t mip = 0; mip < 2; ++mip) {
+    const uint32_t n = uint32_t(vt.pages_per_side(mip));
+    for (uint32_t y = 3; y < n; y += 29)
+      for (uint32_t x = 5; x < n; x += 31) {
+        const PageId p{mip, x, y};
+        const uint32_t mask = culler.mask(p);
+        if (!(mask & bit) && std::popcount(mask) >= 3 && sets.without.size() < 3) sets.without.push_back(p);
+        if ((mask & bit) && std::popcount(mask) >= 3 && sets.with.size() < 2) sets.with.push_back(p);
+      }
+  }
+  return sets;
+}
+
+class GpuLazyMaterials : public GpuTest {};
+
+}  // namespace
+
+TEST_F(GpuLazyMaterials, PagesThatExcludeAMaterialNeverUploadItAndItComesWithTheFirstPageThatNeedsIt) {
+  const SceneAssets& assets = default_assets();
+  auto packed = pack_scene(assets, options_for(Method::FbpbDpt));
+  ASSERT_TRUE(packed.ok());
+  const PackedScene& s = packed.value();
+  const int k = s.params.material_count - 1;  // cobbles: FBPB features, so a meta-texture too
+  ASSERT_NE(s.params.materials[k].meta_offset, gpu::TVT_NO_META);
+  const PageSets sets = find_pages(s, assets.desc.vt, k);
+  ASSERT_EQ(sets.without.size(), 3u);
+  ASSERT_EQ(sets.with.size(), 2u);
+
+  auto created = GpuComposer::create(ctx(), s, 4, lazy_poisoned());
+  ASSERT_TRUE(created.ok());
+  GpuComposer& c = *created.value();
+  const uint32_t all = (1u << s.params.material_count) - 1u;
+  MaterialNeeds everything;
+  everything.mask = everything.meta_mask = all;
+  EXPECT_EQ(c.upload_stats().resident, 0u) << "create() uploaded materials";
+  EXPECT_EQ(c.upload_stats().bytes_uploaded, 0u);
+  EXPECT_EQ(c.upload_stats().bytes_total, bytes_of(s, everything));
+
+  c.compose_pages(sets.without);
+  const MaterialNeeds first = needs_of(s, sets.without);
+  ASSERT_FALSE(first.mask & (1u << k));
+  EXPECT_EQ(c.upload_stats().resident_mask, first.mask);
+  EXPECT_EQ(c.upload_stats().resident, uint32_t(std::popcount(first.mask)));
+  EXPECT_EQ(c.upload_stats().bytes_uploaded, bytes_of(s, first));
+  EXPECT_EQ(c.upload_stats().last_bytes, bytes_of(s, first));
+  c.compose_pages(sets.without);  // again: nothing new
+  EXPECT_EQ(c.upload_stats().last_materials, 0u);
+  EXPECT_EQ(c.upload_stats().bytes_uploaded, bytes_of(s, first));
+
+  // One batch mixing pages with and without k: k, its meta-texture included, arrives first.
+  const std::vector<PageId> mixed = {sets.without[0], sets.with[0]};
+  c.compose_pages(mixed);
+  const MaterialNeeds second = needs_of(s, concat(sets.without, mixed));
+  ASSERT_TRUE(second.meta_mask & (1u << k));
+  EXPECT_EQ(c.upload_stats().resident_mask, second.mask);
+  EXPECT_EQ(c.upload_stats().bytes_uploaded, bytes_of(s, second));
+  EXPECT_EQ(c.upload_stats().last_bytes, bytes_of(s, second) - bytes_of(s, first));
+  RecordProperty("bytes_without_material", std::to_string(bytes_of(s, first)));
+  RecordProperty("bytes_total", std::to_string(c.upload_stats().bytes_total));
+
+  // A per-pixel pass may read any material: the buffer accessors complete the upload.
+  (void)c.material_buffer();
+  EXPECT_EQ(c.upload_stats().complete_mask, all);
+  EXPECT_EQ(c.upload_stats().bytes_uploaded, c.upload_stats().bytes_total);
+}
+
+TEST_F(GpuLazyMaterials, TheTopPageUploadsOnlyCoarseLevelsAndNoMetaTexture) {
+  const SceneAssets& assets = default_assets();
+  auto packed = pack_scene(assets, options_for(Method::FbpbDpt));
+  ASSERT_TRUE(packed.ok());
+  const PackedScene& s = packed.value();
+  auto created = GpuComposer::create(ctx(), s, 2, lazy_poisoned());
+  ASSERT_TRUE(created.ok());
+  GpuComposer& c = *created.value();
+  const uint32_t top = assets.desc.vt.mip_count() - 1;
+  const std::vector<PageId> pages = {{top, 0, 0}};
+  c.compose_pages(pages);
+  const MaterialNeeds needs = needs_of(s, pages);
+  const uint32_t all = (1u << s.params.material_count) - 1u;
+  EXPECT_EQ(needs.mask, all) << "the top page covers the terrain: every material is in it";
+  EXPECT_EQ(needs.meta_mask, 0u);
+  EXPECT_EQ(c.upload_stats().complete_mask, 0u);
+  EXPECT_EQ(c.upload_stats().bytes_uploaded, bytes_of(s, needs));
+  // Beyond the weight layers, a sliver of the textures.
+  const uint64_t weights = 4ull * uint64_t(s.params.weight_width) * uint64_t(s.params.weight_height) *
+                           uint64_t(s.params.material_count);
+  EXPECT_LT(c.upload_stats().bytes_uploaded - weights, (c.upload_stats().bytes_total - weights) / 64);
+  for (int n = 0; n < s.params.material_count; ++n) EXPECT_GE(int(needs.finest_level[size_t(n)]), 5) << n;
+}
+
+TEST_F(GpuLazyMaterials, WithoutCullingEveryMaterialComesWithTheFirstBatch) {
+  auto packed = pack_scene(default_assets(), options_for(Method::Linear));
+  ASSERT_TRUE(packed.ok());
+  auto created = GpuComposer::create(ctx(), packed.value(), 2, lazy_poisoned());
+  ASSERT_TRUE(created.ok());
+  GpuComposer& c = *created.value();
+  c.set_culling(false);
+  const PageId page[] = {{3, 1, 1}};
+  c.compose_pages(page);
+  const MaterialCuller culler(packed.value());
+  EXPECT_EQ(c.upload_stats().resident, uint32_t(packed->params.material_count));
+  EXPECT_EQ(c.upload_stats().bytes_uploaded, bytes_of(packed.value(), culler.needs(page[0], ~0u)));
+}
+
+TEST_F(GpuLazyMaterials, EagerCreateUploadsEverythingAtOnce) {
+  auto packed = pack_scene(default_assets(), options_for(Method::Linear));
+  ASSERT_TRUE(packed.ok());
+  GpuComposerOptions eager;
+  eager.lazy_materials = false;
+  auto created = GpuComposer::create(ctx(), packed.value(), 2, eager);
+  ASSERT_TRUE(created.ok());
+  const uint32_t all = (1u << packed->params.material_count) - 1u;
+  EXPECT_EQ(created.value()->upload_stats().complete_mask, all);
+  EXPECT_EQ(created.value()->upload_stats().bytes_uploaded, created.value()->upload_stats().bytes_total);
+}
+
+// Coarse to fine, as a VT requests them: the top page, an ancestor of a transition page, a page
+// without the feature material, then pages with it; each call is one upload + dispatch.
+TEST_F(GpuLazyMaterials, ComposedPagesAreByteIdenticalToTheEagerUploadForEveryMethod) {
+  const SceneAssets& assets = default_assets();
+  const uint32_t top = assets.desc.vt.mip_count() - 1;
+  for (Method method : k_all_methods) {
+    auto packed = pack_scene(assets, options_for(method));
+    ASSERT_TRUE(packed.ok());
+    const PackedScene& s = packed.value();
+    const PageSets sets = find_pages(s, assets.desc.vt, s.params.material_count - 1);
+    ASSERT_FALSE(sets.without.empty());
+    ASSERT_FALSE(sets.with.empty());
+    const PageId w = sets.with[0];
+    const std::vector<std::vector<PageId>> calls = {
+        {{top, 0, 0}}, {{w.mip + 2, w.x >> 2, w.y >> 2}}, {sets.without[0]}, sets.with};
+    GpuComposerOptions eager_options;
+    eager_options.lazy_materials = false;
+    auto eager = GpuComposer::create(ctx(), s, 2, eager_options);
+    auto lazy = GpuComposer::create(ctx(), s, 2, lazy_poisoned());
+    ASSERT_TRUE(eager.ok() && lazy.ok());
+    std::vector<PageId> order;
+    std::vector<std::vector<uint8_t>> lazy_pages;
+    for (const auto& call : calls) {
+      for (auto& page : lazy.value()->compose_pages(call)) lazy_pages.push_back(std::move(page));
+      order = concat(order, call);
+      if (order.size() <= 3) {  // before the pages with it, the feature material is incomplete
+        EXPECT_FALSE(lazy.value()->upload_stats().complete_mask & (1u << sets.material)) << to_string(method);
+      }
+    }
+    const auto eager_pages = eager.value()->compose_pages(order);
+    ASSERT_EQ(lazy_pages.size(), order.size());
+    for (size_t i = 0; i < order.size(); ++i)
+      EXPECT_EQ(lazy_pages[i], eager_pages[i]) << to_string(method) << " " << to_string(order[i]);
+  }
+}

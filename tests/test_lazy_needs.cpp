@@ -1,0 +1,75 @@
+// MaterialCuller::needs(): which texture levels and meta-textures a page reads (what the lazy
+// material upload copies). The GPU side checks exactness against poisoned buffers
+// (tests/gpu_lazy_materials.cpp); here the level arithmetic and the FBPB fade rule.
+#include <gtest/gtest.h>
+
+#include "compose/material_culling.h"
+#include "support/synthetic_scene.h"
+
+using namespace tvt;
+
+namespace {
+
+// Material 1: 16x16 texture (5 levels) repeating every `period` level-0 texels, FBPB features.
+PackedScene scene(double period, uint32_t supersample = 1, std::optional<Mode> method = std::nullopt) {
+  test::SyntheticMaterial base{{100, 0, 0, 100}, 0.f, Mode::BlendMap};
+  test::SyntheticMaterial top{{0, 200, 0, 100}, 0.5f, Mode::Fbpb};
+  auto a = test::make_synthetic_assets({base, top}, 12);
+  a.desc.materials[1].period_texels = period;
+  a.desc.materials[1].has_fbpb = true;
+  a.materials[1].meta = test::square_feature_meta(16, 8, 8, 4);
+  ComposeOptions o;
+  o.supersample = supersample;
+  o.method = method;
+  auto packed = pack_scene(a, o);
+  TVT_CHECK(packed.ok());
+  return std::move(packed.value());
+}
+
+}  // namespace
+
+TEST(LazyNeeds, FinestLevelFollowsTheFootprintAndIsConservativeAtIntegerLods) {
+  const PackedScene s = scene(48.0);  // R / T = 1/3: lod = mip - 1.585
+  const MaterialCuller culler(s);
+  const int expected[] = {0, 0, 0, 1, 2, 3, 4, 4};
+  for (uint32_t mip = 0; mip < 8; ++mip)
+    EXPECT_EQ(int(culler.needs(PageId{mip, 0, 0}, 3u).finest_level[1]), expected[mip]) << mip;
+  // R / T = 1/4: lod = mip - 2 exactly; fp32 log2 may land just below, so one level finer.
+  const PackedScene q = scene(64.0);
+  const MaterialCuller cq(q);
+  EXPECT_EQ(int(cq.needs(PageId{3, 0, 0}, 3u).finest_level[1]), 0);
+  EXPECT_EQ(int(cq.needs(PageId{5, 0, 0}, 3u).finest_level[1]), 2);
+  // Supersampling 4x4 shrinks the footprint by 4: two levels finer.
+  const PackedScene ss = scene(48.0, 4);
+  EXPECT_EQ(int(MaterialCuller(ss).needs(PageId{5, 0, 0}, 3u).finest_level[1]), 1);
+}
+
+TEST(LazyNeeds, MetaTextureOnlyForFbpbWhileFeaturesHaveNotFadedOut) {
+  const PackedScene s = scene(64.0);  // lod = mip - 2; FBPB fades out at lod 4
+  const MaterialCuller culler(s);
+  EXPECT_EQ(culler.needs(PageId{0, 0, 0}, 3u).meta_mask, 2u);
+  EXPECT_EQ(culler.needs(PageId{5, 0, 0}, 3u).meta_mask, 2u);  // lod 3
+  EXPECT_EQ(culler.needs(PageId{6, 0, 0}, 3u).meta_mask, 2u);  // lod 4: conservative at the edge
+  EXPECT_EQ(culler.needs(PageId{7, 0, 0}, 3u).meta_mask, 0u);  // lod 5: faded, never read
+  EXPECT_EQ(culler.needs(PageId{0, 0, 0}, 1u).meta_mask, 0u);  // culled: nothing of it
+  EXPECT_EQ(culler.needs(PageId{0, 0, 0}, 1u).mask, 1u);
+  const PackedScene d = scene(64.0, 1, Mode::Dpt);  // the method override leaves no FBPB
+  EXPECT_EQ(MaterialCuller(d).needs(PageId{0, 0, 0}, 3u).meta_mask, 0u);
+}
+
+TEST(LazyNeeds, MergeKeepsTheFinestLevelAndEveryBit) {
+  MaterialNeeds a, b;
+  a.mask = 0b011;
+  a.finest_level[0] = 3;
+  a.finest_level[1] = 1;
+  b.mask = 0b110;
+  b.meta_mask = 0b100;
+  b.finest_level[1] = 2;
+  b.finest_level[2] = 0;
+  a.merge(b);
+  EXPECT_EQ(a.mask, 0b111u);
+  EXPECT_EQ(a.meta_mask, 0b100u);
+  EXPECT_EQ(a.finest_level[0], 3);
+  EXPECT_EQ(a.finest_level[1], 1);
+  EXPECT_EQ(a.finest_level[2], 0);
+}

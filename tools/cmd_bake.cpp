@@ -1,0 +1,195 @@
+// `terravt bake`: composes pages with the same compositor the VT uses and writes them to a
+// page store (zstd pages, per-page checksums; docs/page-store.md). Whole VT or a region and a
+// mip range; atomic (temp file + rename); an interrupted bake resumes when run again;
+// `--shard i/n` bakes one deterministic part for `terravt merge`.
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <memory>
+
+#include "tools/cli_common.h"
+#include "tools/commands.h"
+#include "tools/page_producers.h"
+
+namespace tvt::cli {
+namespace {
+
+struct BakeArgs {
+  std::string scene;
+  std::string out;
+  std::string method = "fbpb+dpt2";
+  std::string gpu_name;
+  std::string shard = "0/1";
+  std::string dict = "none";     // none | auto | a dictionary file
+  std::string save_dict;
+  std::vector<int64_t> region;   // x, y, width, height in level-0 texels
+  std::vector<uint32_t> mips;    // lo, hi
+  uint32_t dict_kb = 110;
+  uint32_t dict_samples = 64;
+  uint32_t threads = 0;
+  uint32_t batch = 32;
+  int level = 3;
+  bool cpu = false;
+  bool restart = false;
+  bool quiet = false;
+};
+
+std::atomic<bool> g_interrupted{false};
+extern "C" void on_sigint(int) { g_interrupted = true; }
+
+std::string duration_text(double s) {
+  if (!(s >= 0) || s > 1e7) return "?";
+  char buf[32];
+  const long t = long(s + 0.5);
+  if (t >= 3600) std::snprintf(buf, sizeof(buf), "%ldh%02ldm", t / 3600, t / 60 % 60);
+  else std::snprintf(buf, sizeof(buf), "%ldm%02lds", t / 60, t % 60);
+  return buf;
+}
+
+Result<ShardRange> parse_shard(const std::string& text, uint32_t& index, uint32_t& count) {
+  unsigned i = 0, n = 0;
+  char tail = 0;
+  if (std::sscanf(text.c_str(), "%u/%u%c", &i, &n, &tail) != 2 || n < 1 || i >= n || n > 1000000)
+    return make_error("--shard: expected i/n with 0 <= i < n, got '" + text + "'");
+  index = i;
+  count = n;
+  return ShardRange{};
+}
+
+// A dictionary trained on pages spread evenly over the whole plan (not the shard), so every
+// shard of a bake trains the same dictionary and the parts still merge byte for byte.
+Result<std::vector<uint8_t>> auto_dictionary(const std::vector<PageId>& plan, PageSource& source, uint32_t samples,
+                                             size_t bytes) {
+  std::vector<PageId> picks;
+  const size_t n = std::min<size_t>(samples, plan.size());
+  for (size_t i = 0; i < n; ++i) picks.push_back(plan[i * plan.size() / n]);
+  std::vector<std::vector<uint8_t>> pages;
+  if (auto s = source(picks, pages); !s) return s.error();
+  return train_dictionary(pages, bytes);
+}
+
+int run_bake(const BakeArgs& a) {
+  const char* cmd = "bake";
+  if (a.out.empty()) return fail(cmd, "--out: a store file is required", 2);
+  const auto method = method_from_string(a.method);
+  if (!method) return fail(cmd, "--method: unknown method '" + a.method + "' (linear, blendmap, fbpb, dpt1, dpt2, fbpb+dpt2)", 2);
+  if (a.level < -5 || a.level > 19 || a.level == 0) return fail(cmd, "--level: zstd level must be -5..-1 or 1..19", 2);
+  if (!a.region.empty() && a.region.size() != 4) return fail(cmd, "--region: needs x,y,width,height in level-0 texels", 2);
+  if (!a.mips.empty() && a.mips.size() != 2) return fail(cmd, "--mips: needs lo,hi", 2);
+  if (a.batch < 1 || a.batch > 1024) return fail(cmd, "--batch: must be between 1 and 1024", 2);
+  uint32_t shard_index = 0, shard_count = 1;
+  if (auto s = parse_shard(a.shard, shard_index, shard_count); !s) return fail(cmd, s.error().message, 2);
+  const std::filesystem::path out_dir = std::filesystem::absolute(a.out).parent_path();
+  if (!std::filesystem::is_directory(out_dir)) return fail(cmd, "--out: folder does not exist: " + out_dir.string(), 2);
+
+  auto assets = load_scene_and_assets(a.scene);
+  if (!assets) return fail(cmd, assets.error().message, 2);
+  const VtConfig& vt = assets->desc.vt;
+  BakeRegion region;
+  if (!a.region.empty()) {
+    if (a.region[0] < 0 || a.region[1] < 0 || a.region[2] < 1 || a.region[3] < 1)
+      return fail(cmd, "--region: x, y must be >= 0 and width, height >= 1", 2);
+    region.x0 = uint64_t(a.region[0]);
+    region.y0 = uint64_t(a.region[1]);
+    region.x1 = region.x0 + uint64_t(a.region[2]);
+    region.y1 = region.y0 + uint64_t(a.region[3]);
+  }
+  if (!a.mips.empty()) {
+    region.mip_lo = a.mips[0];
+    region.mip_hi = a.mips[1];
+  }
+  auto plan = bake_plan(vt, region);
+  if (!plan) return fail(cmd, "--region/--mips: " + plan.error().message, 2);
+  const ShardRange part = shard_range(plan->size(), shard_index, shard_count);
+
+  auto producers = PageProducers::create(assets.value(), *method, a.cpu, a.gpu_name);
+  if (!producers) return fail(cmd, producers.error().message, 1);
+  StoreDesc desc = producers.value()->store_desc(a.level);
+  PageSource source = producers.value()->source();
+
+  const auto t0 = std::chrono::steady_clock::now();
+  if (a.dict == "auto") {
+    auto d = auto_dictionary(plan.value(), source, a.dict_samples, size_t(a.dict_kb) * 1024);
+    if (!d) return fail(cmd, "--dict auto: " + d.error().message, 1);
+    desc.dictionary = std::move(d.value());
+    std::printf("trained a %zu-byte zstd dictionary on %u pages in %.1f s\n", desc.dictionary.size(),
+                std::min<uint32_t>(a.dict_samples, uint32_t(plan->size())), seconds_since(t0));
+  } else if (a.dict != "none") {
+    std::ifstream f(a.dict, std::ios::binary);
+    if (!f) return fail(cmd, "--dict: cannot read " + a.dict, 2);
+    desc.dictionary.assign(std::istreambuf_iterator<char>(f), {});
+    if (desc.dictionary.empty()) return fail(cmd, "--dict: " + a.dict + " is empty", 2);
+  }
+  if (!a.save_dict.empty()) {
+    if (desc.dictionary.empty()) return fail(cmd, "--save-dict: no dictionary (use --dict auto)", 2);
+    std::ofstream f(a.save_dict, std::ios::binary);
+    f.write(reinterpret_cast<const char*>(desc.dictionary.data()), std::streamsize(desc.dictionary.size()));
+    if (!f) return fail(cmd, "--save-dict: cannot write " + a.save_dict, 1);
+  }
+
+  std::printf("terravt bake: %s, V = 2^%u, %s, %zu pages in the plan, shard %u/%u = %llu pages, zstd %d%s, %s\n",
+              assets->desc.source_path.c_str(), vt.log2_size, a.method.c_str(), plan->size(), shard_index, shard_count,
+              (unsigned long long)part.count, a.level, desc.dictionary.empty() ? "" : " + dictionary",
+              producers.value()->device_name().c_str());
+  if (a.restart) std::filesystem::remove(a.out + ".partial");
+
+  BakeOptions bo;
+  bo.threads = a.threads;
+  bo.batch_pages = a.batch;
+  bo.resume = !a.restart;
+  bo.shard_index = shard_index;
+  bo.shard_count = shard_count;
+  bo.cancelled = [] { return g_interrupted.load(); };
+  bo.progress = [&](const BakeProgress& p) {
+    if (a.quiet) return;
+    const double rate = p.seconds > 0 ? double(p.done - p.resumed) / p.seconds : 0.0;
+    std::fprintf(stderr, "\r  %llu/%llu pages %5.1f%%  %.1f pages/s  ratio %.2f  ETA %s   ",
+                 (unsigned long long)p.done, (unsigned long long)p.total, p.total ? 100.0 * double(p.done) / double(p.total) : 100.0,
+                 rate, p.stored_bytes ? double(p.raw_bytes) / double(p.stored_bytes) : 0.0, duration_text(p.eta_seconds).c_str());
+  };
+  std::signal(SIGINT, on_sigint);
+  std::signal(SIGTERM, on_sigint);
+  auto summary = bake_store(a.out, desc, plan.value(), source, bo);
+  std::signal(SIGINT, SIG_DFL);
+  std::signal(SIGTERM, SIG_DFL);
+  if (!a.quiet) std::fprintf(stderr, "\n");
+  if (g_interrupted) return fail(cmd, "interrupted; " + a.out + ".partial is kept: run the same command again to resume", 1);
+  if (!summary) return fail(cmd, summary.error().message, 1);
+  const BakeSummary& s = summary.value();
+  std::printf("%llu pages (%llu resumed) in %.1f s: %.1f MB raw -> %.1f MB stored (ratio %.2f), file %.1f MB, %.1f pages/s\n",
+              (unsigned long long)s.pages, (unsigned long long)s.resumed_pages, s.seconds, double(s.raw_bytes) / 1e6,
+              double(s.stored_bytes) / 1e6, s.stored_bytes ? double(s.raw_bytes) / double(s.stored_bytes) : 0.0,
+              double(s.file_bytes) / 1e6, s.seconds > 0 ? double(s.pages - s.resumed_pages) / s.seconds : 0.0);
+  std::printf("wrote %s\n", a.out.c_str());
+  return 0;
+}
+
+const CommandRegistrar k_register{
+    "bake", "Bake pages of the scene into a stored megatexture (zstd page store)", 40, [](CLI::App& app) -> RunFn {
+      auto a = std::make_shared<BakeArgs>();
+      app.add_option("--out", a->out, "Store file to write (atomically: <out>.partial, then rename)")->required();
+      app.add_option("--scene", a->scene, "Scene JSON file (default: the built-in scene)")->check(CLI::ExistingFile);
+      app.add_option("--method", a->method, "Transition method")->capture_default_str();
+      app.add_option("--region", a->region, "x,y,width,height in level-0 texels (default: whole VT)")->delimiter(',');
+      app.add_option("--mips", a->mips, "lo,hi: mip range (default: all)")->delimiter(',');
+      app.add_option("--level", a->level, "zstd level (-5..-1, 1..19)")->capture_default_str();
+      app.add_option("--dict", a->dict, "zstd dictionary: none, auto (trained on sample pages) or a file")->capture_default_str();
+      app.add_option("--dict-kb", a->dict_kb, "Size of a trained dictionary in KiB")->check(CLI::Range(1, 4096))->capture_default_str();
+      app.add_option("--dict-samples", a->dict_samples, "Pages a trained dictionary learns from")->check(CLI::Range(1, 100000))->capture_default_str();
+      app.add_option("--save-dict", a->save_dict, "Also write the dictionary to this file (for other shards)");
+      app.add_option("--threads", a->threads, "Compression threads (0: all cores)")->capture_default_str();
+      app.add_option("--batch", a->batch, "Pages composed per batch")->capture_default_str();
+      app.add_option("--shard", a->shard, "i/n: bake only part i of n (join the parts with terravt merge)")->capture_default_str();
+      app.add_flag("--cpu", a->cpu, "Compose with the double-precision CPU reference instead of the GPU");
+      app.add_flag("--restart", a->restart, "Discard an interrupted <out>.partial instead of resuming it");
+      app.add_option("--gpu", a->gpu_name, "Vulkan device name substring or index");
+      app.add_flag("--quiet", a->quiet, "No progress line");
+      return [a] { return run_bake(*a); };
+    }};
+
+}  // namespace
+}  // namespace tvt::cli
