@@ -18,6 +18,17 @@ struct VtLookup {
   vec2 local;    // texel coordinate inside the slot, border included ([B, B+P) for the payload)
 };
 
+// Window of mip m: origin x, y (pages), size (entries per side, a power of two), first entry.
+ivec4 vt_window(int m) {
+#ifdef TVT_VT_INFO_WORDS
+  return vt_info_words[TVT_VT_INFO_MIP_WORD + m];
+#else
+  return ivec4(VT.mips[m].origin_x, VT.mips[m].origin_y, VT.mips[m].size, int(VT.mips[m].offset));
+#endif
+}
+
+bool vt_outside(ivec2 page, ivec4 w) { return any(lessThan(page, w.xy)) || any(greaterThanEqual(page, w.xy + w.z)); }
+
 // The first mip >= `mip` whose window holds the position's page; one entry fetch. Integer
 // arithmetic in 32 bits: texel coordinates of positions on the terrain (0 <= ti <= V <= 2^30)
 // fit int32, and 64-bit shifts and conversions are slow on some devices (lavapipe emulates them).
@@ -27,28 +38,28 @@ VtLookup vt_lookup32(ivec2 ti, vec2 tf, int mip) {
   r.slot = 0u;
   r.data_mip = 0;
   r.local = vec2(0.0);
-  mip = clamp(mip, 0, VT.mip_count - 1);
-  for (int m = mip; m < VT.mip_count; ++m) {
-    const ivec2 page = ti >> (VT.log2_page + m);
-#ifdef TVT_VT_INFO_WORDS
-    const ivec4 w = vt_info_words[TVT_VT_INFO_MIP_WORD + m];  // origin x, y, size, entry offset
-#else
-    const ivec4 w = ivec4(VT.mips[m].origin_x, VT.mips[m].origin_y, VT.mips[m].size, int(VT.mips[m].offset));
-#endif
-    const ivec2 origin = w.xy;
-    const int size = w.z;
-    if (any(lessThan(page, origin)) || any(greaterThanEqual(page, origin + size))) continue;
-    const uint e = pt_entries[uint(w.w) + uint((page.y & (size - 1)) * size + (page.x & (size - 1)))];
-    if (!tvt_pte_valid(e)) return r;
-    const int d = int(tvt_pte_mip(e));
-    const ivec2 xi = ti >> d;                                          // texel at the data mip
-    const vec2 f = (vec2(ti - (xi << d)) + tf) * exp2(-float(d));      // remainder, < 1 texel + tf
-    r.valid = true;
-    r.slot = tvt_pte_slot(e);
-    r.data_mip = d;
-    r.local = vec2(xi & ((1 << VT.log2_page) - 1)) + f + float(VT.border_texels);
-    return r;
+  int m = clamp(mip, 0, VT.mip_count - 1);
+  ivec4 w = vt_window(m);
+  ivec2 page = ti >> (VT.log2_page + m);
+  // Up to the first mip whose window holds the page. Usually none: windows are centred on the
+  // camera. (One entry fetch after the walk, not inside it: on SIMD devices that run loops under
+  // a mask, only the lanes outside their window pay for the walk.)
+  while (m + 1 < VT.mip_count && vt_outside(page, w)) {
+    ++m;
+    w = vt_window(m);
+    page = ti >> (VT.log2_page + m);
   }
+  if (vt_outside(page, w)) return r;
+  const int size = w.z;
+  const uint e = pt_entries[uint(w.w) + uint((page.y & (size - 1)) * size + (page.x & (size - 1)))];
+  if (!tvt_pte_valid(e)) return r;
+  const int d = int(tvt_pte_mip(e));
+  const ivec2 xi = ti >> d;                                      // texel at the data mip
+  const vec2 f = (vec2(ti - (xi << d)) + tf) * exp2(-float(d));  // remainder, < 1 texel + tf
+  r.valid = true;
+  r.slot = tvt_pte_slot(e);
+  r.data_mip = d;
+  r.local = vec2(xi & ((1 << VT.log2_page) - 1)) + f + float(VT.border_texels);
   return r;
 }
 
