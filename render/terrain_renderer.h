@@ -114,7 +114,9 @@ class TerrainRenderer {
                                                          const TerrainRendererOptions& options = {});
 
   // Records the whole pass into the render target (begin, draws, end): the colour attachments
-  // end in TRANSFER_SRC_OPTIMAL. Chunk selection (culling, LOD) runs on the CPU here.
+  // end in TRANSFER_SRC_OPTIMAL. Chunk selection (culling, LOD) runs on the CPU here. With
+  // FeedbackMode::SeparatePass the low-resolution feedback pass and its copy into
+  // feedback_buffer() follow; with any feedback, a barrier makes the buffer readable by compute.
   void record(VkCommandBuffer cmd, const Camera& camera);
   // Blocking convenience: record + submit + wait + read back attachment 0.
   ImageRGBA8 render(const Camera& camera);
