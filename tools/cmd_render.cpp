@@ -31,6 +31,8 @@ struct RenderArgs {
   uint32_t loader_threads = 2;
   uint32_t staging = 64;
   bool sync_loads = false;
+  std::string feedback = "main";
+  uint32_t anisotropy = 1;
   uint32_t frames = 120;
   uint32_t every = 10;
   uint32_t width = 640, height = 360;
@@ -60,6 +62,7 @@ int run_render(const RenderArgs& a) {
   if (*source == VtSource::procedural && !a.store.empty()) return fail(cmd, "--store: only used with --source stored or hybrid", 2);
   if (a.loader_threads < 1 || a.loader_threads > 64) return fail(cmd, "--loader-threads: must be between 1 and 64", 2);
   if (a.staging < 1 || a.staging > 4096) return fail(cmd, "--staging: must be between 1 and 4096", 2);
+  if (a.feedback != "main" && a.feedback != "separate") return fail(cmd, "--feedback: main or separate, got '" + a.feedback + "'", 2);
   std::shared_ptr<const PageStoreReader> store;
   if (!a.store.empty()) {
     auto opened = PageStoreReader::open(a.store);
@@ -93,6 +96,8 @@ int run_render(const RenderArgs& a) {
   fo.vt.loader.threads = a.loader_threads;
   fo.vt.loader.staging_slots = a.staging;
   fo.vt.sync_loads = a.sync_loads;
+  fo.feedback_mode = a.feedback == "separate" ? FeedbackMode::SeparatePass : FeedbackMode::MainPass;
+  fo.max_anisotropy = a.anisotropy;
   fo.debug_view = a.debug_mips ? 1 : 0;
   std::printf("terravt render: %s, V = 2^%u, %ux%u, %u frames, method %s, source %s, cache %u pages, budget %u/frame, device %s\n",
               assets->desc.source_path.c_str(), assets->desc.vt.log2_size, a.width, a.height, a.frames,
@@ -190,6 +195,8 @@ const CommandRegistrar k_register{
       app.add_option("--store", a->store, "Page store for --source stored|hybrid (terravt bake)");
       app.add_option("--loader-threads", a->loader_threads, "Store reader/decoder threads")->capture_default_str();
       app.add_option("--staging", a->staging, "Stored pages staged at once (loads outstanding at most)")->capture_default_str();
+      app.add_option("--feedback", a->feedback, "Feedback written by the main pass (one rotating pixel per N x N) or a separate 1/N pass")->capture_default_str();
+      app.add_option("--anisotropy", a->anisotropy, "VT taps per mip along the footprint (1: isotropic; at most the page border)")->capture_default_str();
       app.add_flag("--sync-loads", a->sync_loads, "Wait for each frame's stored pages (frame-exact comparisons)");
       app.add_option("--gpu", a->gpu_name, "Vulkan device name substring or index");
       app.add_flag("--quiet", a->quiet, "No progress line");
