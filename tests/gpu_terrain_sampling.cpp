@@ -7,6 +7,7 @@
 #include <cstring>
 #include <numbers>
 
+#include "support/terrain_probe.h"
 #include "compose/packed_scene.h"
 #include "compose/scene.h"
 #include "render/flythrough.h"
@@ -19,16 +20,8 @@
 namespace tvt {
 namespace {
 
-struct Probe {
-  float lod, fine_mip, coarse_mip, edge;
-};
-
-std::vector<Probe> read_probe(const TerrainRenderer& r) {
-  const std::vector<uint8_t> bytes = r.target().read_color(1);
-  std::vector<Probe> p(bytes.size() / sizeof(Probe));
-  std::memcpy(p.data(), bytes.data(), p.size() * sizeof(Probe));
-  return p;
-}
+using test::Probe;
+using test::read_probe;
 
 // Blocking copy of a device buffer (TRANSFER_SRC usage) to the host.
 std::vector<uint32_t> read_buffer(vk::Context& g, const vk::Buffer& src) {

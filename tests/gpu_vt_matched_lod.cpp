@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cstring>
 
+#include "support/terrain_probe.h"
 #include "compose/packed_scene.h"
 #include "compose/scene.h"
 #include "render/flythrough.h"
@@ -20,16 +21,8 @@ using namespace tvt;
 
 namespace {
 
-struct Probe {
-  float lod, fine_mip, coarse_mip, edge;
-};
-
-std::vector<Probe> read_probe(const TerrainRenderer& r) {
-  const std::vector<uint8_t> bytes = r.target().read_color(1);
-  std::vector<Probe> p(bytes.size() / sizeof(Probe));
-  std::memcpy(p.data(), bytes.data(), p.size() * sizeof(Probe));
-  return p;
-}
+using test::Probe;
+using test::read_probe;
 
 struct Diff {
   double se = 0;

@@ -11,6 +11,7 @@
 #include <random>
 #include <thread>
 
+#include "support/temp_dir.h"
 #include "streaming/bake.h"
 #include "streaming/store_format.h"
 #include "streaming/synthetic_pages.h"
@@ -24,10 +25,7 @@ namespace {
 class BakeTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() / ("tvt_bake_" + std::to_string(::getpid()) + "_" + info->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    dir_ = tvt::test::fresh_test_dir("tvt_bake");
     desc_.vt = VtConfig{10, 64, 4};
     desc_.producer = "bake test";
     BakeRegion region;

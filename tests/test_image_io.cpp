@@ -12,6 +12,7 @@
 #include <random>
 #include <string>
 
+#include "support/temp_dir.h"
 #include "compose/image.h"
 
 namespace fs = std::filesystem;
@@ -21,10 +22,7 @@ namespace {
 class ImageIoTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() / ("tvt_image_io_" + std::to_string(::getpid()) + "_" + info->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    dir_ = tvt::test::fresh_test_dir("tvt_image_io");
   }
   void TearDown() override { fs::remove_all(dir_); }
   std::string path(const std::string& name) const { return (dir_ / name).string(); }

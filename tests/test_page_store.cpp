@@ -8,6 +8,7 @@
 #include <fstream>
 #include <thread>
 
+#include "support/temp_dir.h"
 #include "streaming/bake.h"
 #include "streaming/page_store.h"
 #include "streaming/store_format.h"
@@ -22,10 +23,7 @@ namespace {
 class PageStoreTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() / ("tvt_page_store_" + std::to_string(::getpid()) + "_" + info->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    dir_ = tvt::test::fresh_test_dir("tvt_page_store");
   }
   void TearDown() override { fs::remove_all(dir_); }
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
