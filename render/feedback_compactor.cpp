@@ -16,14 +16,7 @@ namespace {
 
 constexpr uint64_t k_fence_timeout_ns = 60ull * 1000 * 1000 * 1000;  // read_blocking: 60 s, then fatal
 
-void memory_barrier(VkCommandBuffer cmd, VkPipelineStageFlags src_stage, VkAccessFlags src_access,
-                    VkPipelineStageFlags dst_stage, VkAccessFlags dst_access) {
-  VkMemoryBarrier mb{};
-  mb.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
-  mb.srcAccessMask = src_access;
-  mb.dstAccessMask = dst_access;
-  vkCmdPipelineBarrier(cmd, src_stage, dst_stage, 0, 1, &mb, 0, nullptr, 0, nullptr);
-}
+constexpr auto memory_barrier = &vk::Context::memory_barrier;
 
 uint32_t group_count(uint32_t invocations) {
   return (invocations + gpu::TVT_FEEDBACK_GROUP - 1) / gpu::TVT_FEEDBACK_GROUP;

@@ -80,12 +80,9 @@ MaterialNeeds MaterialUploader::everything() const {
 void MaterialUploader::fill(VkCommandBuffer cmd, uint32_t word) {
   for (const vk::Buffer* b : {&texel_buffer_, &meta_buffer_, &weight_buffer_})
     vkCmdFillBuffer(cmd, b->handle(), 0, VK_WHOLE_SIZE, word);
-  VkMemoryBarrier barrier{};
-  barrier.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
-  barrier.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-  barrier.dstAccessMask = VK_ACCESS_MEMORY_READ_BIT | VK_ACCESS_MEMORY_WRITE_BIT;
-  vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, 0, 1, &barrier, 0,
-                       nullptr, 0, nullptr);
+  vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
+                              VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
+                              VK_ACCESS_MEMORY_READ_BIT | VK_ACCESS_MEMORY_WRITE_BIT);
 }
 
 void MaterialUploader::record(VkCommandBuffer cmd, const MaterialNeeds& needs) {
@@ -163,12 +160,8 @@ void MaterialUploader::record_copies(VkCommandBuffer cmd, const MaterialNeeds& n
     if (!regions[t].empty())
       vkCmdCopyBuffer(cmd, staging.handle(), targets[t]->handle(), uint32_t(regions[t].size()), regions[t].data());
   // Visible to whatever reads next: the compose dispatch, or a per-pixel pass.
-  VkMemoryBarrier barrier{};
-  barrier.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
-  barrier.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-  barrier.dstAccessMask = VK_ACCESS_MEMORY_READ_BIT;
-  vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, 0, 1, &barrier, 0,
-                       nullptr, 0, nullptr);
+  vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
+                              VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, VK_ACCESS_MEMORY_READ_BIT);
   keep.push_back(std::move(staging));
   stats_.bytes_uploaded += bytes;
   stats_.last_materials += uint32_t(std::popcount(touched));

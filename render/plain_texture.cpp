@@ -81,12 +81,8 @@ Result<std::unique_ptr<PlainTexture>> PlainTexture::create(vk::Context& context,
       jobs.push_back(PageJob{PageId{t->vt_mip_, i % pages_per_side, i / pages_per_side}, uint32_t(jobs.size())});
     context.run_commands([&](VkCommandBuffer cmd) {
       c.record(cmd, jobs);
-      VkMemoryBarrier mb{};
-      mb.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
-      mb.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
-      mb.dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
-      vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &mb, 0,
-                           nullptr, 0, nullptr);
+      vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT,
+                                  VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_READ_BIT);
       vk::Context::transition(cmd, c.output(), VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
       std::vector<VkImageCopy> regions(jobs.size());
       for (size_t i = 0; i < jobs.size(); ++i) {

@@ -838,4 +838,12 @@ void Context::transition(VkCommandBuffer cmd, const Image& image, VkImageLayout 
   }
 }
 
+void Context::memory_barrier(VkCommandBuffer cmd, VkPipelineStageFlags src_stage, VkAccessFlags src_access,
+                             VkPipelineStageFlags dst_stage, VkAccessFlags dst_access) {
+  auto mb = init<VkMemoryBarrier>(VK_STRUCTURE_TYPE_MEMORY_BARRIER);
+  mb.srcAccessMask = src_access;
+  mb.dstAccessMask = dst_access;
+  vkCmdPipelineBarrier(cmd, src_stage, dst_stage, 0, 1, &mb, 0, nullptr, 0, nullptr);
+}
+
 }  // namespace tvt::vk

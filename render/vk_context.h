@@ -273,6 +273,10 @@ class Context {
   // earlier commands' writes are made visible to all later commands. Records
   // vkCmdPipelineBarrier2 when the device has synchronization2 on, else vkCmdPipelineBarrier.
   static void transition(VkCommandBuffer cmd, const Image& image, VkImageLayout from, VkImageLayout to);
+  // Global memory barrier: `src_access` writes of `src_stage` become visible to `dst_access`
+  // of `dst_stage` (copy chains, compute -> fragment, device -> host readbacks).
+  static void memory_barrier(VkCommandBuffer cmd, VkPipelineStageFlags src_stage, VkAccessFlags src_access,
+                             VkPipelineStageFlags dst_stage, VkAccessFlags dst_access);
 
   struct Messages;  // validation message sink (implementation detail)
 

@@ -29,11 +29,8 @@ std::vector<uint32_t> read_buffer(vk::Context& g, const vk::Buffer& src) {
   g.run_commands([&](VkCommandBuffer cmd) {
     const VkBufferCopy region{0, 0, src.size()};
     vkCmdCopyBuffer(cmd, src.handle(), staging.handle(), 1, &region);
-    VkMemoryBarrier mb{};
-    mb.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
-    mb.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-    mb.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
-    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &mb, 0, nullptr, 0, nullptr);
+    vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
+                                VK_PIPELINE_STAGE_HOST_BIT, VK_ACCESS_HOST_READ_BIT);
   });
   std::vector<uint32_t> out(size_t(src.size() / 4));
   std::memcpy(out.data(), staging.mapped(), out.size() * 4);

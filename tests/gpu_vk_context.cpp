@@ -48,14 +48,7 @@ class ScopedEnv {
 };
 
 // Global memory barrier for readbacks and copy chains inside one command buffer.
-void barrier(VkCommandBuffer cmd, VkPipelineStageFlags src_stage, VkAccessFlags src_access,
-             VkPipelineStageFlags dst_stage, VkAccessFlags dst_access) {
-  VkMemoryBarrier mb{};
-  mb.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
-  mb.srcAccessMask = src_access;
-  mb.dstAccessMask = dst_access;
-  vkCmdPipelineBarrier(cmd, src_stage, dst_stage, 0, 1, &mb, 0, nullptr, 0, nullptr);
-}
+constexpr auto barrier = &vk::Context::memory_barrier;
 
 // Copies a whole device buffer into a new host-visible buffer and returns its bytes.
 std::vector<unsigned char> read_back(vk::Context& ctx, const vk::Buffer& src) {
