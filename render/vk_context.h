@@ -104,27 +104,35 @@ struct ComputeBinding {
   VkDescriptorType type;
 };
 
-class ComputePipeline {
+// What every pipeline owns: the pipeline, its layout and its set-0 descriptor-set layout.
+// Move-only; destroys them with the device it was created on.
+class PipelineHandles {
  public:
-  ComputePipeline() = default;
-  ComputePipeline(ComputePipeline&&) noexcept;
-  ComputePipeline& operator=(ComputePipeline&&) noexcept;
-  ComputePipeline(const ComputePipeline&) = delete;
-  ComputePipeline& operator=(const ComputePipeline&) = delete;
-  ~ComputePipeline();
+  PipelineHandles() = default;
+  PipelineHandles(PipelineHandles&&) noexcept;
+  PipelineHandles& operator=(PipelineHandles&&) noexcept;
+  PipelineHandles(const PipelineHandles&) = delete;
+  PipelineHandles& operator=(const PipelineHandles&) = delete;
+  ~PipelineHandles();
 
   VkPipeline handle() const { return pipeline_; }
   VkPipelineLayout layout() const { return layout_; }
   VkDescriptorSetLayout set_layout() const { return set_layout_; }
 
- private:
-  friend class Context;
+ protected:
   VkDevice device_ = VK_NULL_HANDLE;
   VkPipeline pipeline_ = VK_NULL_HANDLE;
   VkPipelineLayout layout_ = VK_NULL_HANDLE;
   VkDescriptorSetLayout set_layout_ = VK_NULL_HANDLE;
-  std::vector<ComputeBinding> bindings_;  // sizes the pool of each DescriptorSet
+
+ private:
   void reset();
+};
+
+class ComputePipeline : public PipelineHandles {
+ private:
+  friend class Context;
+  std::vector<ComputeBinding> bindings_;  // sizes the pool of each DescriptorSet
 };
 
 // A graphics pipeline for dynamic rendering (Vulkan 1.3 core): vertex + fragment stages, its
@@ -156,29 +164,14 @@ struct GraphicsPipelineDesc {
   VkFrontFace front_face = VK_FRONT_FACE_COUNTER_CLOCKWISE;  // in framebuffer coordinates (y down)
 };
 
-class GraphicsPipeline {
+class GraphicsPipeline : public PipelineHandles {
  public:
-  GraphicsPipeline() = default;
-  GraphicsPipeline(GraphicsPipeline&&) noexcept;
-  GraphicsPipeline& operator=(GraphicsPipeline&&) noexcept;
-  GraphicsPipeline(const GraphicsPipeline&) = delete;
-  GraphicsPipeline& operator=(const GraphicsPipeline&) = delete;
-  ~GraphicsPipeline();
-
-  VkPipeline handle() const { return pipeline_; }
-  VkPipelineLayout layout() const { return layout_; }
-  VkDescriptorSetLayout set_layout() const { return set_layout_; }
   VkShaderStageFlags push_constant_stages() const { return push_stages_; }
 
  private:
   friend class Context;
-  VkDevice device_ = VK_NULL_HANDLE;
-  VkPipeline pipeline_ = VK_NULL_HANDLE;
-  VkPipelineLayout layout_ = VK_NULL_HANDLE;
-  VkDescriptorSetLayout set_layout_ = VK_NULL_HANDLE;
   VkShaderStageFlags push_stages_ = 0;
   std::vector<VkDescriptorType> types_;  // sizes the pool of each DescriptorSet
-  void reset();
 };
 
 // One descriptor set from a pool owned by the set itself; write_*() binds resources. Writes

@@ -71,23 +71,22 @@ void Image::reset() {
   synchronization2_ = false;
 }
 
-ComputePipeline::ComputePipeline(ComputePipeline&& o) noexcept { *this = std::move(o); }
+PipelineHandles::PipelineHandles(PipelineHandles&& o) noexcept { *this = std::move(o); }
 
-ComputePipeline& ComputePipeline::operator=(ComputePipeline&& o) noexcept {
+PipelineHandles& PipelineHandles::operator=(PipelineHandles&& o) noexcept {
   if (this != &o) {
     reset();
     device_ = std::exchange(o.device_, VK_NULL_HANDLE);
     pipeline_ = std::exchange(o.pipeline_, VK_NULL_HANDLE);
     layout_ = std::exchange(o.layout_, VK_NULL_HANDLE);
     set_layout_ = std::exchange(o.set_layout_, VK_NULL_HANDLE);
-    bindings_ = std::exchange(o.bindings_, {});
   }
   return *this;
 }
 
-ComputePipeline::~ComputePipeline() { reset(); }
+PipelineHandles::~PipelineHandles() { reset(); }
 
-void ComputePipeline::reset() {
+void PipelineHandles::reset() {
   if (device_) {
     if (pipeline_) vkDestroyPipeline(device_, pipeline_, nullptr);
     if (layout_) vkDestroyPipelineLayout(device_, layout_, nullptr);
@@ -97,38 +96,6 @@ void ComputePipeline::reset() {
   pipeline_ = VK_NULL_HANDLE;
   layout_ = VK_NULL_HANDLE;
   set_layout_ = VK_NULL_HANDLE;
-  bindings_.clear();
-}
-
-GraphicsPipeline::GraphicsPipeline(GraphicsPipeline&& o) noexcept { *this = std::move(o); }
-
-GraphicsPipeline& GraphicsPipeline::operator=(GraphicsPipeline&& o) noexcept {
-  if (this != &o) {
-    reset();
-    device_ = std::exchange(o.device_, VK_NULL_HANDLE);
-    pipeline_ = std::exchange(o.pipeline_, VK_NULL_HANDLE);
-    layout_ = std::exchange(o.layout_, VK_NULL_HANDLE);
-    set_layout_ = std::exchange(o.set_layout_, VK_NULL_HANDLE);
-    push_stages_ = std::exchange(o.push_stages_, 0);
-    types_ = std::exchange(o.types_, {});
-  }
-  return *this;
-}
-
-GraphicsPipeline::~GraphicsPipeline() { reset(); }
-
-void GraphicsPipeline::reset() {
-  if (device_) {
-    if (pipeline_) vkDestroyPipeline(device_, pipeline_, nullptr);
-    if (layout_) vkDestroyPipelineLayout(device_, layout_, nullptr);
-    if (set_layout_) vkDestroyDescriptorSetLayout(device_, set_layout_, nullptr);
-  }
-  device_ = VK_NULL_HANDLE;
-  pipeline_ = VK_NULL_HANDLE;
-  layout_ = VK_NULL_HANDLE;
-  set_layout_ = VK_NULL_HANDLE;
-  push_stages_ = 0;
-  types_.clear();
 }
 
 DescriptorSet::DescriptorSet(DescriptorSet&& o) noexcept { *this = std::move(o); }
