@@ -144,7 +144,7 @@ void VtSystem::begin_frame(uint64_t frame, uint32_t camera_x, uint32_t camera_y,
     auto r = residency_.next_request();
     if (!r) break;
     if (stored_ && stored_->has(r->page)) {
-      if (!stored_->can_accept() || !stored_->request(*r)) {
+      if (!stored_->request(*r)) {
         residency_.cancelled(r->page);  // ring full: asked again next frame
         break;
       }

@@ -50,14 +50,14 @@ std::string duration_text(double s) {
   return buf;
 }
 
-Result<ShardRange> parse_shard(const std::string& text, uint32_t& index, uint32_t& count) {
+Status parse_shard(const std::string& text, uint32_t& index, uint32_t& count) {
   unsigned i = 0, n = 0;
   char tail = 0;
   if (std::sscanf(text.c_str(), "%u/%u%c", &i, &n, &tail) != 2 || n < 1 || i >= n || n > 1000000)
     return make_error("--shard: expected i/n with 0 <= i < n, got '" + text + "'");
   index = i;
   count = n;
-  return ShardRange{};
+  return Ok{};
 }
 
 // A dictionary trained on pages spread evenly over the whole plan (not the shard), so every

@@ -88,15 +88,15 @@ uint64_t file_bytes(const std::string& path) {
 
 // Disk size of a full stored set at V = 2^log2_v with the store's page size: every page of
 // every mip, each at the bytes per page measured for that mip (mips coarser than any
-// measured one take the coarsest measured figure; finer, the finest).
+// measured mip take the next coarser measured mip's figure; coarser than all, the coarsest).
 double extrapolate_bytes(const std::map<uint32_t, double>& per_mip, const VtConfig& like, uint32_t log2_v) {
   VtConfig vt = like;
   vt.log2_size = log2_v;
   double total = 0;
   for (uint32_t m = 0; m < vt.mip_count(); ++m) {
     // Bytes per page depend on the page's footprint in level-0 texels, i.e. on the mip, not on V.
-    auto it = per_mip.lower_bound(m);
-    const double bpp = it != per_mip.end() ? (it->first == m ? it->second : it->second) : per_mip.rbegin()->second;
+    const auto it = per_mip.lower_bound(m);
+    const double bpp = it != per_mip.end() ? it->second : per_mip.rbegin()->second;
     const double n = double(vt.pages_per_side(m));
     total += n * n * bpp;
   }
