@@ -28,11 +28,13 @@ Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, c
 
   c->params_buffer_ = context.create_buffer(sizeof(gpu::TvtComposeParams), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
   std::memcpy(c->params_buffer_.mapped(), &c->params_, sizeof(c->params_));
-  c->materials_ = std::make_unique<MaterialUploader>(context, scene);
+  c->records_in_flight_ = std::max(options.records_in_flight, 1u);
+  c->materials_ = std::make_unique<MaterialUploader>(context, scene, c->records_in_flight_);
   if (options.poison_materials)
     context.run_commands([&](VkCommandBuffer cmd) { c->materials_->fill(cmd, 0xffffffffu); });
   if (!options.lazy_materials) c->materials_->upload_all();
-  c->job_buffer_ = context.create_buffer(sizeof(gpu::TvtPageJob) * slots, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+  c->job_buffer_ = context.create_buffer(sizeof(gpu::TvtPageJob) * slots * c->records_in_flight_,
+                                         VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
   c->readback_buffer_ = context.create_buffer(VkDeviceSize(c->slot_texels_) * c->slot_texels_ * 4 * slots,
                                               VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
   c->output_ = context.create_image(VK_FORMAT_R8G8B8A8_UNORM, c->slot_texels_, c->slot_texels_, slots,
@@ -72,7 +74,9 @@ void GpuComposer::set_params(const gpu::TvtComposeParams& params) {
 
 void GpuComposer::record(VkCommandBuffer cmd, std::span<const PageJob> jobs) {
   TVT_CHECK(jobs.size() <= slots_);
-  auto* dst = static_cast<gpu::TvtPageJob*>(job_buffer_.mapped());
+  // This call's part of the job ring; the call that last used it has completed (contract).
+  const uint32_t job_offset = uint32_t(records_++ % records_in_flight_) * slots_;
+  auto* dst = static_cast<gpu::TvtPageJob*>(job_buffer_.mapped()) + job_offset;
   MaterialNeeds needed;  // what any of the pages reads
   for (size_t i = 0; i < jobs.size(); ++i) {
     TVT_CHECK(jobs[i].slot < slots_);
@@ -85,7 +89,7 @@ void GpuComposer::record(VkCommandBuffer cmd, std::span<const PageJob> jobs) {
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.handle());
   const VkDescriptorSet set = descriptors_.handle();
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.layout(), 0, 1, &set, 0, nullptr);
-  const gpu::TvtComposePush push{0u, uint32_t(jobs.size())};
+  const gpu::TvtComposePush push{job_offset, uint32_t(jobs.size())};
   vkCmdPushConstants(cmd, pipeline_.layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
   const uint32_t groups = (slot_texels_ + gpu::TVT_COMPOSE_GROUP - 1) / gpu::TVT_COMPOSE_GROUP;
   vkCmdDispatch(cmd, groups, groups, uint32_t(jobs.size()));

@@ -32,6 +32,9 @@ struct GpuComposerOptions {
   // Tests: fill the material buffers with 0xffffffff first, so that a read of anything not
   // uploaded yet shows instead of reading whatever the allocation held.
   bool poison_materials = false;
+  // record() calls whose commands may still run when the next call comes (frames in flight):
+  // each owns its part of the job buffer and its material staging.
+  uint32_t records_in_flight = 1;
 };
 
 class GpuComposer {
@@ -89,6 +92,8 @@ class GpuComposer {
   bool culling_ = true;
   uint32_t slots_ = 0;
   uint32_t slot_texels_ = 0;
+  uint32_t records_in_flight_ = 1;
+  uint64_t records_ = 0;
   // The const buffer accessors complete the lazy upload through it (a cache, not state).
   std::unique_ptr<MaterialUploader> materials_;
   vk::Buffer params_buffer_, job_buffer_, readback_buffer_;

@@ -13,7 +13,8 @@ constexpr VkBufferUsageFlags k_device_usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT
 VkDeviceSize device_bytes(size_t bytes) { return std::max<VkDeviceSize>(16, VkDeviceSize(bytes)); }
 }  // namespace
 
-MaterialUploader::MaterialUploader(vk::Context& context, const PackedScene& scene) : context_(&context) {
+MaterialUploader::MaterialUploader(vk::Context& context, const PackedScene& scene, uint32_t records_in_flight)
+    : context_(&context), staging_ring_(std::max(records_in_flight, 1u)) {
   const gpu::TvtComposeParams& p = scene.params;
   TVT_CHECK(p.material_count >= 1 && p.material_count <= gpu::TVT_MAX_MATERIALS);
   layer_floats_ = size_t(p.weight_width) * size_t(p.weight_height);
@@ -86,17 +87,19 @@ void MaterialUploader::fill(VkCommandBuffer cmd, uint32_t word) {
 }
 
 void MaterialUploader::record(VkCommandBuffer cmd, const MaterialNeeds& needs) {
-  staging_.clear();  // the previous record()'s commands have completed (class contract)
+  // The call that used this ring entry records_in_flight calls ago has completed (contract).
+  std::vector<vk::Buffer>& keep = staging_ring_[records_++ % staging_ring_.size()];
+  keep.clear();
   stats_.last_materials = 0;
   stats_.last_bytes = 0;
-  if (!all_resident()) record_copies(cmd, needs, staging_);
+  if (!all_resident()) record_copies(cmd, needs, keep);
 }
 
 void MaterialUploader::upload_all() {
   if (all_resident()) return;
   stats_.last_materials = 0;
   stats_.last_bytes = 0;
-  // One material per submission bounds the staging memory; not staging_: a recorded upload
+  // One material per submission bounds the staging memory; not the ring: a recorded upload
   // that is not submitted yet may still own it.
   const MaterialNeeds all = everything();
   for (size_t n = 0; n < materials_.size(); ++n) {

@@ -12,9 +12,9 @@
 // PackedScene, so the shaders' view of them never changes); only the copies are deferred.
 // The host keeps the scene's texels until everything is uploaded.
 //
-// Not thread-safe. record() releases the staging buffers of the previous record(): the
-// commands the previous call recorded must have completed (the composer's job ring already
-// requires this).
+// Not thread-safe. Staging buffers live for `records_in_flight` record() calls: the commands
+// that many calls ago recorded must have completed before the next call (the frame ring of
+// the caller guarantees it; the composer's job ring has the same depth).
 #pragma once
 #include <cstdint>
 #include <vector>
@@ -39,13 +39,13 @@ struct MaterialUploadStats {
 
 class MaterialUploader {
  public:
-  MaterialUploader(vk::Context& context, const PackedScene& scene);
+  MaterialUploader(vk::Context& context, const PackedScene& scene, uint32_t records_in_flight = 1);
   ~MaterialUploader();
   MaterialUploader(const MaterialUploader&) = delete;
   MaterialUploader& operator=(const MaterialUploader&) = delete;
 
   // Records the copies of whatever `needs` names that is not on the GPU yet (from a staging
-  // buffer kept until the next call) and a barrier that makes them visible to every later
+  // buffer kept for records_in_flight calls) and a barrier that makes them visible to every later
   // command. Bits of materials the scene does not have are ignored. Nothing when all is there.
   // The data counts as resident from here on: `cmd` must be submitted.
   void record(VkCommandBuffer cmd, const MaterialNeeds& needs);
@@ -90,7 +90,9 @@ class MaterialUploader {
   size_t layer_floats_ = 0;
   std::vector<bool> layer_resident_;
   vk::Buffer texel_buffer_, meta_buffer_, weight_buffer_;
-  std::vector<vk::Buffer> staging_;  // in use by the latest recorded upload
+  // Staging of the latest records_in_flight record() calls, by call index modulo that.
+  std::vector<std::vector<vk::Buffer>> staging_ring_;
+  uint64_t records_ = 0;
   MaterialUploadStats stats_;
 };
 

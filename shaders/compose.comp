@@ -26,7 +26,7 @@ void main() {
   const uint job_index = gl_GlobalInvocationID.z + push.job_offset;
   const int size = P.page_texels + 2 * P.border_texels;
   const ivec2 t = ivec2(gl_GlobalInvocationID.xy);
-  if (t.x >= size || t.y >= size || job_index >= push.job_count) return;
+  if (t.x >= size || t.y >= size || gl_GlobalInvocationID.z >= push.job_count) return;
   const TvtPageJob job = jobs[job_index];
   const int mip = int(job.mip);
   const int64_t last = (int64_t(1) << (P.log2_vt - mip)) - 1;
