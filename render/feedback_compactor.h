@@ -61,7 +61,10 @@ class FeedbackCompactor {
   // The result of `frame` when its slot holds that frame and its fence has signalled
   // (vkGetFenceStatus); std::nullopt otherwise (not submitted yet, still running, skipped, or
   // overwritten by frame + ring_size). Never waits. May be called more than once per frame.
-  std::optional<FeedbackResult> try_read(uint64_t frame);
+  // known_complete: the caller knows the commands that compacted `frame` have completed (the
+  // fence of the command buffer it recorded them into signalled, render/frame_ring.h), so the
+  // compactor's own fence, which may signal a moment later, is not consulted.
+  std::optional<FeedbackResult> try_read(uint64_t frame, bool known_complete = false);
 
   // Like try_read() but waits for the fence (tools, tests). std::nullopt when the slot does
   // not hold `frame`.

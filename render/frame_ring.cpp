@@ -1,0 +1,155 @@
+#include "render/frame_ring.h"
+
+#include <algorithm>
+#include <chrono>
+#include <string>
+
+namespace tvt {
+
+namespace {
+constexpr uint64_t k_fence_timeout_ns = 60ull * 1000 * 1000 * 1000;  // 60 s, then fatal
+constexpr uint32_t k_max_frames_in_flight = 8;
+}  // namespace
+
+Result<std::unique_ptr<FrameRing>> FrameRing::create(vk::Context& context, uint32_t frames_in_flight) {
+  if (frames_in_flight < 1 || frames_in_flight > k_max_frames_in_flight)
+    return make_error("frames_in_flight: must be between 1 and " + std::to_string(k_max_frames_in_flight) + ", got " +
+                      std::to_string(frames_in_flight));
+  const VkDevice device = context.device();
+  std::unique_ptr<FrameRing> r(new FrameRing());
+  r->context_ = &context;
+
+  VkCommandPoolCreateInfo pci{};
+  pci.sType = VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO;
+  pci.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
+  pci.queueFamilyIndex = context.queue_family();
+  TVT_VK_CHECK(vkCreateCommandPool(device, &pci, nullptr, &r->pool_));
+
+  // Timestamps: only when the queue family counts them (timestampValidBits > 0).
+  uint32_t families = 0;
+  vkGetPhysicalDeviceQueueFamilyProperties(context.physical_device(), &families, nullptr);
+  std::vector<VkQueueFamilyProperties> props(families);
+  vkGetPhysicalDeviceQueueFamilyProperties(context.physical_device(), &families, props.data());
+  const uint32_t valid_bits = props.at(context.queue_family()).timestampValidBits;
+  if (valid_bits > 0 && context.properties().limits.timestampPeriod > 0.f) {
+    r->timestamp_mask_ = valid_bits >= 64 ? ~0ull : (1ull << valid_bits) - 1;
+    r->ns_per_tick_ = double(context.properties().limits.timestampPeriod);
+    VkQueryPoolCreateInfo qci{};
+    qci.sType = VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO;
+    qci.queryType = VK_QUERY_TYPE_TIMESTAMP;
+    qci.queryCount = 2 * frames_in_flight;
+    TVT_VK_CHECK(vkCreateQueryPool(device, &qci, nullptr, &r->queries_));
+    r->timestamps_ = context.create_buffer(sizeof(uint64_t) * 2 * frames_in_flight, VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
+  }
+
+  r->slots_.resize(frames_in_flight);
+  for (Slot& s : r->slots_) {
+    VkFenceCreateInfo fci{};
+    fci.sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO;
+    fci.flags = VK_FENCE_CREATE_SIGNALED_BIT;
+    TVT_VK_CHECK(vkCreateFence(device, &fci, nullptr, &s.fence));
+    VkCommandBufferAllocateInfo cai{};
+    cai.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO;
+    cai.commandPool = r->pool_;
+    cai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+    cai.commandBufferCount = 1;
+    TVT_VK_CHECK(vkAllocateCommandBuffers(device, &cai, &s.cmd));
+  }
+  return r;
+}
+
+FrameRing::~FrameRing() {
+  if (!context_) return;
+  // A slot begun and never submitted keeps an unsignalled fence, so wait for the device rather
+  // than for the fences.
+  context_->wait_idle();
+  const VkDevice device = context_->device();
+  for (Slot& s : slots_) vkDestroyFence(device, s.fence, nullptr);
+  if (queries_ != VK_NULL_HANDLE) vkDestroyQueryPool(device, queries_, nullptr);
+  if (pool_ != VK_NULL_HANDLE) vkDestroyCommandPool(device, pool_, nullptr);
+}
+
+std::optional<FrameTiming> FrameRing::collect(Slot& slot, uint32_t index) {
+  if (!slot.frame) return std::nullopt;
+  FrameTiming t;
+  t.frame = *slot.frame;
+  slot.frame.reset();
+  // One queue: frames complete in submission order.
+  if (!completed_through_ || t.frame > *completed_through_) completed_through_ = t.frame;
+  if (queries_ == VK_NULL_HANDLE) return std::nullopt;
+  const uint64_t* ticks = static_cast<const uint64_t*>(timestamps_.mapped()) + 2 * index;
+  const uint64_t elapsed = (ticks[1] - ticks[0]) & timestamp_mask_;
+  t.gpu_ms = double(elapsed) * ns_per_tick_ * 1e-6;
+  return t;
+}
+
+VkCommandBuffer FrameRing::begin(uint64_t frame) {
+  TVT_CHECK(!recording_);
+  TVT_CHECK(!last_frame_ || frame > *last_frame_);
+  const uint32_t index = uint32_t(frame % slots_.size());
+  Slot& s = slots_[index];
+  const VkDevice device = context_->device();
+  const auto t0 = std::chrono::steady_clock::now();
+  const VkResult r = vkWaitForFences(device, 1, &s.fence, VK_TRUE, k_fence_timeout_ns);
+  if (r == VK_TIMEOUT) fatal(__FILE__, __LINE__, "vkWaitForFences", "frame ring: a frame did not finish within 60 s");
+  TVT_VK_CHECK(r);
+  last_wait_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  if (auto t = collect(s, index)) completed_.push_back(*t);
+  TVT_VK_CHECK(vkResetFences(device, 1, &s.fence));
+  TVT_VK_CHECK(vkResetCommandBuffer(s.cmd, 0));
+  VkCommandBufferBeginInfo bi{};
+  bi.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO;
+  bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+  TVT_VK_CHECK(vkBeginCommandBuffer(s.cmd, &bi));
+  if (queries_ != VK_NULL_HANDLE) {
+    vkCmdResetQueryPool(s.cmd, queries_, 2 * index, 2);
+    vkCmdWriteTimestamp(s.cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, queries_, 2 * index);
+  }
+  s.frame = frame;
+  recording_ = index;
+  last_frame_ = frame;
+  return s.cmd;
+}
+
+void FrameRing::submit(VkFence also_signal) {
+  TVT_CHECK(recording_);
+  Slot& s = slots_[*recording_];
+  if (queries_ != VK_NULL_HANDLE) {
+    const uint32_t first = 2 * *recording_;
+    vkCmdWriteTimestamp(s.cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries_, first + 1);
+    vkCmdCopyQueryPoolResults(s.cmd, queries_, first, 2, timestamps_.handle(), sizeof(uint64_t) * first,
+                              sizeof(uint64_t), VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT);
+    vk::Context::memory_barrier(s.cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
+                                VK_PIPELINE_STAGE_HOST_BIT, VK_ACCESS_HOST_READ_BIT);
+  }
+  TVT_VK_CHECK(vkEndCommandBuffer(s.cmd));
+  VkSubmitInfo si{};
+  si.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
+  si.commandBufferCount = 1;
+  si.pCommandBuffers = &s.cmd;
+  TVT_VK_CHECK(vkQueueSubmit(context_->queue(), 1, &si, s.fence));
+  // No work: the fence signals when everything submitted before it has completed.
+  if (also_signal != VK_NULL_HANDLE) TVT_VK_CHECK(vkQueueSubmit(context_->queue(), 0, nullptr, also_signal));
+  recording_.reset();
+}
+
+std::vector<FrameTiming> FrameRing::take_completed() {
+  for (uint32_t i = 0; i < slots_.size(); ++i) {
+    Slot& s = slots_[i];
+    if (!s.frame || (recording_ && *recording_ == i)) continue;
+    if (vkGetFenceStatus(context_->device(), s.fence) != VK_SUCCESS) continue;
+    if (auto t = collect(s, i)) completed_.push_back(*t);
+  }
+  std::vector<FrameTiming> out;
+  out.swap(completed_);
+  std::sort(out.begin(), out.end(), [](const FrameTiming& a, const FrameTiming& b) { return a.frame < b.frame; });
+  return out;
+}
+
+void FrameRing::wait_idle() {
+  TVT_CHECK(!recording_);
+  for (Slot& s : slots_)
+    if (s.frame) TVT_VK_CHECK(vkWaitForFences(context_->device(), 1, &s.fence, VK_TRUE, k_fence_timeout_ns));
+}
+
+}  // namespace tvt
