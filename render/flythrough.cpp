@@ -5,6 +5,7 @@
 
 #include "compose/scene_identity.h"
 #include "render/feedback_compactor.h"
+#include "render/frame_ring.h"
 #include "render/terrain_renderer.h"
 #include "render/vt_debug.h"
 
@@ -29,6 +30,7 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
   auto packed = pack_scene(assets, options_for(o.method));
   if (!packed) return packed.error();
   VtSystemOptions vto = o.vt;
+  vto.frames_in_flight = o.frames_in_flight;
   if (vto.store && vto.scene_hash == 0) vto.scene_hash = scene_identity(assets.desc, o.method);
   auto vt = VtSystem::create(g, packed.value(), vto);
   if (!vt) return vt.error();
@@ -45,9 +47,16 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
   FeedbackCompactor::Options fo;
   fo.feedback_width = t.feedback_width();
   fo.feedback_height = t.feedback_height();
-  fo.ring_size = 3;
+  // One more readback slot than frames in flight: the slot frame f reuses held frame f - K - 1,
+  // complete since begin(f) waited for frame f - K (the compactor's own fence for it signals
+  // right behind the frame's, so a slot is at worst found busy once and that frame goes
+  // without feedback; it never waits).
+  fo.ring_size = o.frames_in_flight + 1;
   auto compactor = FeedbackCompactor::create(g, fo);
   if (!compactor) return compactor.error();
+  auto ring = FrameRing::create(g, o.frames_in_flight);
+  if (!ring) return ring.error();
+  FrameRing& frames = *ring.value();
 
   const TerrainMesh& mesh = t.mesh();
   const CameraPath path = flythrough_path(assets, mesh);
@@ -65,34 +74,44 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
     fr.time_s = path.start_time() + double(f) / o.fps;
     fr.camera = path.camera_at(std::min(fr.time_s, path.end_time()));
     for (double c : cuts) fr.cut = fr.cut || (c > fr.time_s - 1.0 / o.fps && c <= fr.time_s && f > 0);
-    // The newest compacted feedback whose fence has signalled (1 or 2 frames late); never a
-    // wait. When none is ready the previous list stands, so requests keep flowing.
-    for (uint64_t late = 1; late <= 2 && late <= f; ++late)
-      if (auto r = o.deterministic ? compactor.value()->read_blocking(f - late) : compactor.value()->try_read(f - late)) {
+    // Back-pressure only: blocks when the GPU is frames_in_flight frames behind.
+    VkCommandBuffer cmd = frames.begin(f);
+    fr.wait_ms = frames.last_wait_ms();
+    for (const FrameTiming& done : frames.take_completed()) {
+      fr.gpu_ms = done.gpu_ms;
+      fr.gpu_ms_frame = done.frame;
+    }
+    // The newest compacted feedback whose frame has completed (K frames late after begin(f),
+    // newer when the GPU keeps up); never a wait. When none is ready the previous list stands,
+    // so requests keep flowing.
+    const auto w0 = std::chrono::steady_clock::now();
+    for (uint64_t late = 1; late <= o.frames_in_flight + 1 && late <= f; ++late)
+      if (auto r = o.deterministic ? compactor.value()->read_blocking(f - late)
+                                   : compactor.value()->try_read(f - late, frames.completed(f - late))) {
         feedback.clear();
         for (const auto& [page, count] : r->pages) feedback.push_back(PageFeedback{page, count});
         fr.feedback_pages = r->pages.size();
         fr.feedback_frames_late = late;
         break;
       }
+    if (o.deterministic) fr.wait_ms += ms_between(w0, std::chrono::steady_clock::now());
+    const auto w1 = std::chrono::steady_clock::now();
     const uint32_t cx = uint32_t(std::clamp(fr.camera.position_m.x / mpt, 0.0, vt_max));
     const uint32_t cy = uint32_t(std::clamp(fr.camera.position_m.y / mpt, 0.0, vt_max));
     v.begin_frame(f + 1, cx, cy, feedback);
-    const auto t1 = std::chrono::steady_clock::now();
-    g.run_commands([&](VkCommandBuffer c) {
-      v.record(c);
-      t.record(c, fr.camera);
-    });
-    const auto t2 = std::chrono::steady_clock::now();
-    compactor.value()->submit(t.feedback_buffer(), f);
+    fr.residency_ms = ms_between(o.deterministic ? w1 : w0, std::chrono::steady_clock::now());
+    v.record(cmd);
+    t.record(cmd, fr.camera);
+    // The compaction rides in the frame's command buffer, so its result is ready when the frame
+    // is: feedback is typically frames_in_flight frames late, at most one more.
+    frames.submit(compactor.value()->record(cmd, t.feedback_buffer(), f));
     v.end_frame();
     fr.vt = v.stats();
     fr.completed = v.last_completed();
     if (v.stored()) fr.store_errors = v.stored()->take_error_messages();
     fr.triangles = t.last_stats().triangles;
-    fr.cpu_ms = ms_between(t0, t1);
-    fr.gpu_ms = ms_between(t1, t2);
     fr.total_ms = ms_between(t0, std::chrono::steady_clock::now());
+    fr.cpu_ms = fr.total_ms - fr.wait_ms;
     sum.frames = f + 1;
     sum.pages_composed += fr.vt.composed;
     sum.pages_loaded += fr.vt.stored.landed;
@@ -110,6 +129,7 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
     }
   }
   sum.gpu_bytes = v.gpu_bytes();
+  frames.wait_idle();
   sum.seconds = ms_between(start, std::chrono::steady_clock::now()) / 1000.0;
   g.wait_idle();
   return sum;

@@ -32,6 +32,9 @@ struct FlythroughOptions {
   // of one path request the same pages at the same frames (comparisons, tests). Off: the
   // newest ready feedback, never a wait (what an engine does).
   bool deterministic = false;
+  // Frames recorded ahead of the GPU (render/frame_ring.h): the loop blocks only when the GPU
+  // is this many frames behind. 1: every frame waits for the previous one.
+  uint32_t frames_in_flight = 2;
 };
 
 struct FlythroughFrame {
@@ -45,7 +48,14 @@ struct FlythroughFrame {
   std::vector<std::string> store_errors;  // bad stored pages first seen this frame (each once)
   std::vector<PageId> completed;          // pages that became resident this frame
   uint64_t triangles = 0;
-  double cpu_ms = 0, gpu_ms = 0, total_ms = 0;
+  // total: the loop iteration (frame begin to submit and bookkeeping; not the callback);
+  // wait: blocked on the GPU being frames_in_flight frames behind (and, deterministic, on
+  // feedback); cpu: total - wait. gpu: GPU time of frame gpu_ms_frame, the newest frame seen
+  // complete at the start of this iteration (timestamps; 0 when none or no timestamp support).
+  // residency: CPU time of the feedback read-back parse and VtSystem::begin_frame (LRU,
+  // recentring, request selection: vt.select_ms of it).
+  double cpu_ms = 0, wait_ms = 0, gpu_ms = 0, total_ms = 0, residency_ms = 0;
+  uint64_t gpu_ms_frame = 0;
 };
 
 struct FlythroughSummary {
@@ -60,7 +70,8 @@ struct FlythroughSummary {
   double seconds = 0;
 };
 
-// Read-backs a frame callback may ask for (each blocks; call only what is needed).
+// Read-backs a frame callback may ask for (each blocks until the frame has completed; call only
+// what is needed). The callback runs before the next frame is recorded, so they show this frame.
 struct FlythroughViews {
   std::function<ImageRGBA8()> frame;       // the rendered colour
   std::function<ImageRGBA8()> atlas;       // every cache slot (vt_debug.h)

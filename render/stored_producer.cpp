@@ -25,12 +25,14 @@ Result<std::unique_ptr<StoredProducer>> StoredProducer::create(vk::Context& cont
                       d.producer + "'); its pages would not match this scene");
   if (options.staging_slots < 1) return make_error("staging_slots: must be at least 1");
   if (options.threads < 1) return make_error("loader threads: must be at least 1");
+  if (options.frames_in_flight < 1) return make_error("frames_in_flight: must be at least 1");
 
   std::unique_ptr<StoredProducer> p(new StoredProducer());
   p->context_ = &context;
   p->store_ = std::move(store);
   p->staging_slots_ = options.staging_slots;
   p->slot_texels_ = vt.slot_texels();
+  p->to_release_.resize(options.frames_in_flight);
   // Only layer 0 goes to the cache; a store with more layers is staged whole (page_bytes).
   const uint64_t page_bytes = d.page_bytes();
   p->staging_ = context.create_buffer(VkDeviceSize(page_bytes) * options.staging_slots,
@@ -101,7 +103,7 @@ void StoredProducer::record(VkCommandBuffer cmd, const vk::Image& cache) {
       region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, c.request.slot, 1};
       region.imageExtent = {slot_texels_, slot_texels_, 1};
       regions.push_back(region);
-      to_release_.push_back(c.staging);
+      to_release_[frames_ % to_release_.size()].push_back(c.staging);
     }
     // The cache lives in GENERAL (the composer writes it as a storage image); the copy gets the
     // transfer layout, and the barriers order it after this frame's compute writes and before
@@ -118,11 +120,15 @@ void StoredProducer::record(VkCommandBuffer cmd, const vk::Image& cache) {
   stats_.staging_in_use = s.staging_in_use;
 }
 
-void StoredProducer::begin_frame() { stats_ = StoredFrameStats{}; }
-
-void StoredProducer::end_frame() {
-  for (uint32_t s : to_release_) loader_->release(s);
-  to_release_.clear();
+void StoredProducer::begin_frame() {
+  stats_ = StoredFrameStats{};
+  // The frame that used this part of the ring, frames_in_flight frames ago, has completed: its
+  // copies have read their staging.
+  std::vector<uint32_t>& done = to_release_[frames_ % to_release_.size()];
+  for (uint32_t s : done) loader_->release(s);
+  done.clear();
 }
+
+void StoredProducer::end_frame() { ++frames_; }
 
 }  // namespace tvt

@@ -4,11 +4,12 @@
 // into the cache slots. Nothing here ever waits for I/O.
 //
 // Per frame, on the frame thread (VtSystem drives it):
-//   begin_frame()                    resets the frame's counters
+//   begin_frame()                    resets the frame's counters; releases the staging of the
+//                                    frame frames_in_flight frames ago (completed by then)
 //   poll(ready, failed, cancelled)   finished loads; ready ones are copied by the next record()
 //   request(page, slot) / cancel()    while can_accept()
 //   record(cmd, cache)               copy ready pages from staging into their cache layers
-//   end_frame()                      after the frame's fence: staging slots are released
+//   end_frame()                      once `cmd` is submitted
 // A page that fails verification is reported once, remembered as bad and never requested
 // again: has() turns false, so the caller falls back (coarser mip or procedural page).
 #pragma once
@@ -28,6 +29,7 @@ namespace tvt {
 struct StoredProducerOptions {
   uint32_t threads = 2;          // loader I/O + decode threads
   uint32_t staging_slots = 32;   // pages staged at once (also the most loads outstanding)
+  uint32_t frames_in_flight = 1; // frames whose copies may still run when a frame begins
 };
 
 struct StoredFrameStats {
@@ -84,7 +86,9 @@ class StoredProducer {
   uint32_t staging_slots_ = 0;
   uint32_t slot_texels_ = 0;
   std::vector<Copy> to_copy_;      // recorded by the next record()
-  std::vector<uint32_t> to_release_;  // staging slots whose copy is in the current frame
+  // Staging slots copied by each of the last frames_in_flight frames, by frame modulo that.
+  std::vector<std::vector<uint32_t>> to_release_;
+  uint64_t frames_ = 0;
   std::unordered_set<uint64_t> bad_;  // pages that failed: never requested again
   std::vector<LoadedPage> polled_;
   StoredFrameStats stats_;

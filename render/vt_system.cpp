@@ -42,9 +42,13 @@ Result<std::unique_ptr<VtSystem>> VtSystem::create(vk::Context& context, const P
     if (!options.store) return make_error("source: '" + std::string(to_string(options.source)) + "' needs a page store");
     // Async loads may be outstanding on top of the pages composed this frame; a synchronous
     // run asks for exactly what a procedural run would, so its frames match one for one.
-    if (options.sync_loads) lo.staging_slots = std::max(lo.staging_slots, options.page_budget);
+    // Staging is released frames_in_flight frames after its copy was recorded.
+    if (options.sync_loads) lo.staging_slots = std::max(lo.staging_slots, options.page_budget * options.frames_in_flight);
     else ro.max_requests_per_frame = options.page_budget + lo.staging_slots;
   }
+  if (options.frames_in_flight < 1 || options.frames_in_flight > 8)
+    return make_error("vt: frames_in_flight must be between 1 and 8, got " + std::to_string(options.frames_in_flight));
+  lo.frames_in_flight = options.frames_in_flight;
   if (auto s = Residency::validate(vt, ro, "vt"); !s) return s.error();
   if (options.page_budget > options.cache_slots)
     return make_error("vt: page_budget (" + std::to_string(options.page_budget) + ") exceeds cache_slots (" +
@@ -54,7 +58,9 @@ Result<std::unique_ptr<VtSystem>> VtSystem::create(vk::Context& context, const P
   v->context_ = &context;
   v->vt_ = vt;
   v->options_ = options;
-  auto composer = GpuComposer::create(context, scene, options.cache_slots);
+  GpuComposerOptions co;
+  co.records_in_flight = options.frames_in_flight;
+  auto composer = GpuComposer::create(context, scene, options.cache_slots, co);
   if (!composer) return composer.error();
   v->composer_ = std::move(composer.value());
   if (streams) {
@@ -69,12 +75,19 @@ Result<std::unique_ptr<VtSystem>> VtSystem::create(vk::Context& context, const P
       entries.size_bytes(),
       VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, false);
   context.upload(v->entry_buffer_, entries.data(), entries.size_bytes());
-  v->info_buffer_ = context.create_buffer(sizeof(gpu::TvtVtInfo), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
-  const gpu::TvtVtInfo info = make_vt_info(vt, table, 0.f);
-  std::memcpy(v->info_buffer_.mapped(), &info, sizeof(info));
-  // A recentre can rewrite every entry; nothing else writes more in one frame.
+  // Device-local, written in the command stream (vkCmdUpdateBuffer), so a frame still in
+  // flight keeps reading its own values.
+  v->info_buffer_ = context.create_buffer(sizeof(gpu::TvtVtInfo),
+                                          VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT |
+                                              VK_BUFFER_USAGE_TRANSFER_SRC_BIT,  // debug read-backs
+                                          false);
+  v->info_ = make_vt_info(vt, table, 0.f);
+  context.upload(v->info_buffer_, &v->info_, sizeof(v->info_));
+  // A recentre can rewrite every entry; nothing else writes more in one frame. One part of the
+  // host-visible ring per frame in flight.
   v->update_capacity_ = uint32_t(entries.size());
-  v->update_buffer_ = context.create_buffer(VkDeviceSize(v->update_capacity_) * 8, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+  v->update_buffer_ = context.create_buffer(VkDeviceSize(v->update_capacity_) * 8 * options.frames_in_flight,
+                                            VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
 
   const vk::ComputeBinding bindings[] = {{TVT_BIND_SCATTER_ENTRIES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
                                          {TVT_BIND_SCATTER_UPDATES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}};
@@ -172,12 +185,19 @@ void VtSystem::begin_frame(uint64_t frame, uint32_t camera_x, uint32_t camera_y,
   // Evictions happened in next_request(): their unmaps must reach the GPU before anything
   // samples this frame, together with the recentred windows.
   pending_updates_ = residency_.take_table_updates();
-  gpu::TvtVtInfo info = make_vt_info(vt_, residency_.page_table(), float(residency_.mip_bias()));
-  info.debug_view = debug_view_;
-  std::memcpy(info_buffer_.mapped(), &info, sizeof(info));
+  info_ = make_vt_info(vt_, residency_.page_table(), float(residency_.mip_bias()));
+  info_.debug_view = debug_view_;
 }
 
 void VtSystem::record(VkCommandBuffer cmd) {
+  // Earlier frames (possibly still in flight) sample the cache, entries and info that this
+  // frame rewrites: their reads finish first (WAR, an execution dependency suffices).
+  vkCmdPipelineBarrier(cmd,
+                       VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT |
+                           VK_PIPELINE_STAGE_TRANSFER_BIT,
+                       VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 0, nullptr, 0, nullptr,
+                       0, nullptr);
+  vkCmdUpdateBuffer(cmd, info_buffer_.handle(), 0, sizeof(info_), &info_);
   composer_->record(cmd, jobs_);
   stats_.materials = composer_->upload_stats();
   if (stored_) {
@@ -185,7 +205,9 @@ void VtSystem::record(VkCommandBuffer cmd) {
     stats_.stored = stored_->stats();
   }
   TVT_CHECK(pending_updates_.size() <= update_capacity_);
-  auto* dst = static_cast<uint32_t*>(update_buffer_.mapped());
+  // This frame's part of the ring; the frame that used it last has completed (protocol).
+  const uint32_t first = uint32_t(records_++ % options_.frames_in_flight) * update_capacity_;
+  auto* dst = static_cast<uint32_t*>(update_buffer_.mapped()) + 2 * size_t(first);
   const PageTable& table = residency_.page_table();
   for (size_t i = 0; i < pending_updates_.size(); ++i) {
     dst[2 * i] = table.window(pending_updates_[i].mip).offset + pending_updates_[i].index;
@@ -196,12 +218,12 @@ void VtSystem::record(VkCommandBuffer cmd) {
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, scatter_.handle());
     const VkDescriptorSet set = scatter_set_.handle();
     vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, scatter_.layout(), 0, 1, &set, 0, nullptr);
-    const gpu::TvtScatterPush push{uint32_t(pending_updates_.size())};
+    const gpu::TvtScatterPush push{first, uint32_t(pending_updates_.size())};
     vkCmdPushConstants(cmd, scatter_.layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
     vkCmdDispatch(cmd, (push.count + gpu::TVT_SCATTER_GROUP - 1) / gpu::TVT_SCATTER_GROUP, 1, 1);
   }
   pending_updates_.clear();
-  // Composed texels and scattered entries become visible to every later read.
+  // Composed texels, the info and scattered entries become visible to every later read.
   vk::Context::memory_barrier(
       cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
       VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT,

@@ -8,13 +8,20 @@
 // ancestor), hybrid (stored where the store has a good page, composed elsewhere and instead
 // of a bad stored page).
 //
-// Frame protocol (single queue; the caller waits for a frame's fence before the next
-// begin_frame, so host-visible buffers are never written while the GPU reads them):
+// Frame protocol (single queue). Up to frames_in_flight frames may be on the GPU at once: the
+// caller guarantees (render/frame_ring.h) that frame f - frames_in_flight has completed before
+// begin_frame(f); everything a frame's commands read from host memory (table updates, compose
+// jobs, material and stored-page staging) lives in rings of that depth. GPU-side ordering
+// (cache writes after earlier frames' reads, table updates after the composition they map)
+// comes from queue order and barriers, not from waits.
 //   begin_frame(frame, camera texel, feedback)  — CPU: LRU, requests within the budgets
-//   record(cmd)                                 — compose requested pages, scatter table updates
+//   record(cmd)                                 — compose requested pages, land loaded pages,
+//                                                 update info + scatter table updates
 //   ... the caller records passes that sample (bind info_buffer/entry_buffer/cache/sampler) ...
-//   end_frame()                                 — after the fence: composed and landed pages
-//                                                 become resident (visible from the next frame)
+//   end_frame()                                 — once `cmd` is submitted: composed and landed
+//                                                 pages count as resident (their table entries
+//                                                 are scattered by the next record(), after
+//                                                 their texels in queue order)
 // Stored pages load on the loader's threads across frames: one requested in frame f lands in
 // the first frame after it finished (or, with sync_loads, in frame f itself, which makes a
 // stored run request and show exactly what a procedural run does).
@@ -53,6 +60,7 @@ struct VtSystemOptions {
   uint32_t cancel_after_frames = 4;    // loads no frame has needed for this long are cancelled
   bool sync_loads = false;             // wait for this frame's loads (comparisons, tests)
   uint64_t scene_hash = 0;             // checked against the store's (0: unchecked)
+  uint32_t frames_in_flight = 2;       // frames the caller may have on the GPU at once (1 ... 8)
 };
 
 struct VtFrameStats {
@@ -103,7 +111,9 @@ class VtSystem {
   std::vector<PageRequest> landing_, load_failed_, load_cancelled_;
   std::unordered_set<uint64_t> loading_;   // pages with a load outstanding
   vk::Buffer info_buffer_, entry_buffer_, update_buffer_;
-  uint32_t update_capacity_ = 0;
+  gpu::TvtVtInfo info_{};              // written into info_buffer_ by record()
+  uint32_t update_capacity_ = 0;       // entries per ring part of update_buffer_
+  uint64_t records_ = 0;               // record() calls (ring position)
   vk::ComputePipeline scatter_;
   vk::DescriptorSet scatter_set_;
   VkSampler sampler_ = VK_NULL_HANDLE;

@@ -10,7 +10,7 @@ layout(std430, set = 0, binding = TVT_BIND_SCATTER_UPDATES) readonly buffer Upda
 layout(push_constant) uniform Push { TvtScatterPush push; };
 
 void main() {
-  const uint i = gl_GlobalInvocationID.x;
-  if (i >= push.count) return;
-  entries[updates[i].x] = updates[i].y;
+  if (gl_GlobalInvocationID.x >= push.count) return;
+  const uvec2 u = updates[push.first + gl_GlobalInvocationID.x];
+  entries[u.x] = u.y;
 }

@@ -36,7 +36,7 @@ TEST_F(GpuFlythrough, HundredFramesStreamPagesWithValidationSilent) {
     with_feedback += f.feedback_pages > 0;
     max_resident = std::max(max_resident, f.vt.residency.resident);
     EXPECT_LE(f.vt.composed, o.vt.page_budget);
-    EXPECT_LE(f.feedback_frames_late, 2u);
+    EXPECT_LE(f.feedback_frames_late, o.frames_in_flight + 1u);  // typically frames_in_flight
     if (f.index + 1 == o.frames) last = views.frame();
     return true;
   });

@@ -172,22 +172,28 @@ Result<LoopResult> measure_loop(vk::Context& g, const SceneAssets& assets, Metho
   fo.vt.cache_slots = a.cache_slots;
   fo.vt.page_budget = a.page_budget;
   // Frame cost: on a CPU device the process CPU time from one frame's callback to the next (the
-  // whole frame: residency, composition, passes, compaction); else the wall clock of the frame's
-  // command buffer (composition + table scatter + terrain pass).
+  // whole frame: residency, composition, passes, compaction; with frames in flight the GPU work
+  // of a frame may fall into the next interval, which the median over steady frames absorbs);
+  // else the GPU time of the frame's command buffer (timestamps: composition + table scatter +
+  // terrain pass), which arrives a frame or two later.
   const bool cpu_device = g.properties().deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU;
-  std::vector<double> steady, all, feedback_cpu, select;
+  std::vector<double> frame_ms(a.frames, 0.0), feedback_cpu, select;
+  std::vector<uint32_t> composed(a.frames, 0);
   LoopResult r;
   int cut_frame = -1;
   double last_cpu = process_cpu_ms();
+  uint32_t frames_run = 0;
   auto run = run_flythrough(g, assets, fo, [&](const FlythroughFrame& f, const auto&) {
-    const double now = process_cpu_ms(), ms = cpu_device ? now - last_cpu : f.gpu_ms;
+    const double now = process_cpu_ms();
+    if (cpu_device) frame_ms[f.index] = now - last_cpu;
+    else if (f.gpu_ms_frame < frame_ms.size()) frame_ms[f.gpu_ms_frame] = f.gpu_ms;
     last_cpu = now;
-    if (f.index > 0) all.push_back(ms);  // frame 0 carries the loop's set-up
+    frames_run = f.index + 1;
+    composed[f.index] = f.vt.composed;
     r.pages_composed += f.vt.composed;
-    if (f.vt.composed == 0 && f.index > 5) steady.push_back(ms);
     // CPU before the frame's commands: feedback read-back parse, LRU update of the feedback
     // pages and their ancestors, window recentring; minus the request selection.
-    feedback_cpu.push_back(f.cpu_ms - f.vt.select_ms);
+    feedback_cpu.push_back(f.residency_ms - f.vt.select_ms);
     select.push_back(f.vt.select_ms);
     if (f.cut) cut_frame = int(f.index);
     // Sharp: the feedback already comes from after the cut, and nothing is requested (every
@@ -198,6 +204,13 @@ Result<LoopResult> measure_loop(vk::Context& g, const SceneAssets& assets, Metho
     return true;
   });
   if (!run) return run.error();
+  // Frame 0 carries the loop's set-up; on a GPU the last frames' timings may not have arrived.
+  std::vector<double> steady, all;
+  for (uint32_t i = 1; i < frames_run; ++i) {
+    if (!cpu_device && frame_ms[i] == 0.0) continue;
+    all.push_back(frame_ms[i]);
+    if (composed[i] == 0 && i > 5) steady.push_back(frame_ms[i]);
+  }
   r.cut = cut_frame >= 0;
   r.steady_ms = median(steady);
   r.steady_frames = steady.size();

@@ -11,7 +11,8 @@ TVT_BEGIN
 TVT_CONST uint TVT_SCATTER_GROUP = 64u;
 
 struct TvtScatterPush {
-  uint count;  // updates in the buffer
+  uint first;  // first update of this dispatch in the buffer (ring part)
+  uint count;  // updates from `first` on
 };
 
 TVT_END
