@@ -78,6 +78,9 @@ struct LoopResult {
   bool cut = false;
   size_t steady_frames = 0;
   uint64_t pages_composed = 0;
+  // Means over frames 1.. of the loop's own clocks: wall per frame, the frame thread's work
+  // (recording, residency) and its blocking on the GPU; feedback lateness in frames.
+  double wall_ms = 0, thread_ms = 0, wait_ms = 0, feedback_late = 0;
 };
 
 Result<StaticResult> measure_static(vk::Context& g, const SceneAssets& assets, Method method, const PlainTexture& plain,
@@ -160,8 +163,9 @@ Result<StaticResult> measure_static(vk::Context& g, const SceneAssets& assets, M
 }
 
 Result<LoopResult> measure_loop(vk::Context& g, const SceneAssets& assets, Method method, FeedbackMode mode,
-                                const BenchFrameArgs& a) {
+                                const BenchFrameArgs& a, uint32_t frames_in_flight = FlythroughOptions{}.frames_in_flight) {
   FlythroughOptions fo;
+  fo.frames_in_flight = frames_in_flight;
   fo.method = method;
   fo.frames = a.frames;
   fo.width = a.width;
@@ -191,6 +195,12 @@ Result<LoopResult> measure_loop(vk::Context& g, const SceneAssets& assets, Metho
     frames_run = f.index + 1;
     composed[f.index] = f.vt.composed;
     r.pages_composed += f.vt.composed;
+    if (f.index > 0) {
+      r.wall_ms += f.total_ms;
+      r.thread_ms += f.cpu_ms;
+      r.wait_ms += f.wait_ms;
+      r.feedback_late += double(f.feedback_frames_late);
+    }
     // CPU before the frame's commands: feedback read-back parse, LRU update of the feedback
     // pages and their ancestors, window recentring; minus the request selection.
     feedback_cpu.push_back(f.residency_ms - f.vt.select_ms);
@@ -219,6 +229,8 @@ Result<LoopResult> measure_loop(vk::Context& g, const SceneAssets& assets, Metho
   double sum = 0;
   for (double x : all) sum += x;
   r.all_ms = all.empty() ? 0.0 : sum / double(all.size());
+  if (frames_run > 1)
+    for (double* m : {&r.wall_ms, &r.thread_ms, &r.wait_ms, &r.feedback_late}) *m /= double(frames_run - 1);
   r.feedback_cpu_ms = median(feedback_cpu);
   r.select_ms = median(select);
   return r;
@@ -339,7 +351,25 @@ int run_bench_frame(const BenchFrameArgs& a) {
   j["methods"] = jm;
   std::printf("(Loop frames: %s;\n VT/direct: loop frame over the static direct pass. Feedback CPU: read-back parse, LRU update,\n"
               " window recentring, on the frame thread; select: request selection.)\n",
-              cpu_device ? "process CPU per whole frame (residency, composition, passes, compaction)" : "wall clock of the frame's commands");
+              cpu_device ? "process CPU per whole frame (residency, composition, passes, compaction)" : "GPU time of the frame's commands (timestamps)");
+
+  if (!a.static_only) {
+    // Frames in flight: the same loop recorded 1, 2 or 3 frames ahead of the GPU.
+    std::printf("\nFrames in flight (%s, main-pass feedback; means per frame): the frame thread blocks only when the GPU is K\n"
+                "frames behind; feedback comes K frames late:\n",
+                std::string(to_string(methods.back())).c_str());
+    std::printf("%3s %10s %14s %12s %14s %14s %7s\n", "K", "wall ms", "thread work ms", "blocked ms", "feedback late",
+                "time-to-sharp", "pages");
+    for (uint32_t depth : {1u, 2u, 3u}) {
+      auto l = measure_loop(g, assets.value(), methods.back(), FeedbackMode::MainPass, a, depth);
+      if (!l) return fail(cmd, l.error().message, 1);
+      std::printf("%3u %10.1f %14.2f %12.1f %14.2f %14s %7llu\n", depth, l->wall_ms, l->thread_ms, l->wait_ms,
+                  l->feedback_late, sharp_text(l.value()).c_str(), static_cast<unsigned long long>(l->pages_composed));
+      j["frames_in_flight"][std::to_string(depth)] = {{"wall_ms", l->wall_ms},         {"thread_ms", l->thread_ms},
+                                                      {"blocked_ms", l->wait_ms},      {"feedback_late", l->feedback_late},
+                                                      {"time_to_sharp", l->time_to_sharp}, {"pages_composed", l->pages_composed}};
+    }
+  }
 
   std::printf("\nVT memory against V (page table W = 128, cache of %u pages of %ux%u RGBA8):\n", a.cache_slots,
               assets->desc.vt.slot_texels(), assets->desc.vt.slot_texels());
