@@ -71,15 +71,15 @@ int run_render(const RenderArgs& a) {
     if (!opened) return fail(cmd, "--store: " + opened.error().message, 2);
     store = std::move(opened.value());
   }
-  std::error_code ec;
-  std::filesystem::create_directories(a.out, ec);
-  if (ec || !std::filesystem::is_directory(a.out)) return fail(cmd, "--out: cannot create folder " + a.out, 2);
-
+  // Inputs first: a bad scene or a missing device leaves no output folder behind.
   auto assets = load_scene_and_assets(a.scene);
   if (!assets) return fail(cmd, assets.error().message, 2);
   auto ctx = gpu_context(a.gpu_name);
   if (!ctx) return fail(cmd, ctx.error().message, 1);
   vk::Context& g = *ctx.value();
+  std::error_code ec;
+  std::filesystem::create_directories(a.out, ec);
+  if (ec || !std::filesystem::is_directory(a.out)) return fail(cmd, "--out: cannot create folder " + a.out, 2);
   std::ofstream stats_file(std::filesystem::path(a.out) / "stats.jsonl");
   if (!stats_file) return fail(cmd, "--out: cannot write stats.jsonl in " + a.out, 1);
 
