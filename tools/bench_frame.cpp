@@ -311,11 +311,13 @@ int run_bench_frame(const BenchFrameArgs& a) {
                 r.difference(kVtSeparate, kVtNoFeedback), r.pass(kVtSeparate), r.compaction_ms);
   }
 
-  std::printf("\nFlythrough loop, %u frames at %.0f fps, cache %u pages, budget %u (ms per frame: steady = median of the\n"
-              "frames that composed nothing, VT+production = mean of all frames):\n",
-              a.frames, a.fps, a.cache_slots, a.page_budget);
-  std::printf("%-10s %-9s %10s %14s %10s %14s %7s %14s %14s %10s\n", "method", "feedback", "VT steady", "VT+production",
-              "VT/direct", "VT+prod/direct", "pages", "time-to-sharp", "feedback CPU", "select");
+  if (!a.static_only) {
+    std::printf("\nFlythrough loop, %u frames at %.0f fps, cache %u pages, budget %u (ms per frame: steady = median of the\n"
+                "frames that composed nothing, VT+production = mean of all frames):\n",
+                a.frames, a.fps, a.cache_slots, a.page_budget);
+    std::printf("%-10s %-9s %10s %14s %10s %14s %7s %14s %14s %10s\n", "method", "feedback", "VT steady", "VT+production",
+                "VT/direct", "VT+prod/direct", "pages", "time-to-sharp", "feedback CPU", "select");
+  }
   nlohmann::json jm;
   for (size_t i = 0; i < methods.size(); ++i) {
     const std::string name(to_string(methods[i]));
@@ -349,9 +351,10 @@ int run_bench_frame(const BenchFrameArgs& a) {
     }
   }
   j["methods"] = jm;
-  std::printf("(Loop frames: %s;\n VT/direct: loop frame over the static direct pass. Feedback CPU: read-back parse, LRU update,\n"
-              " window recentring, on the frame thread; select: request selection.)\n",
-              cpu_device ? "process CPU per whole frame (residency, composition, passes, compaction)" : "GPU time of the frame's commands (timestamps)");
+  if (!a.static_only)
+    std::printf("(Loop frames: %s;\n VT/direct: loop frame over the static direct pass. Feedback CPU: read-back parse, LRU update,\n"
+                " window recentring, on the frame thread; select: request selection.)\n",
+                cpu_device ? "process CPU per whole frame (residency, composition, passes, compaction)" : "GPU time of the frame's commands (timestamps)");
 
   if (!a.static_only) {
     // Frames in flight: the same loop recorded 1, 2 or 3 frames ahead of the GPU.
