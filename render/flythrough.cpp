@@ -80,6 +80,7 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
     for (const FrameTiming& done : frames.take_completed()) {
       fr.gpu_ms = done.gpu_ms;
       fr.gpu_ms_frame = done.frame;
+      if (done.stage_ms.size() == 3) fr.gpu_stage_ms = {done.stage_ms[0], done.stage_ms[1], done.stage_ms[2]};
     }
     // The newest compacted feedback whose frame has completed (K frames late after begin(f),
     // newer when the GPU keeps up); never a wait. When none is ready the previous list stands,
@@ -101,10 +102,13 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
     v.begin_frame(f + 1, cx, cy, feedback);
     fr.residency_ms = ms_between(o.deterministic ? w1 : w0, std::chrono::steady_clock::now());
     v.record(cmd);
+    frames.mark();  // GPU stage "vt": material uploads, composition, stored-page copies, table scatter
     t.record(cmd, fr.camera);
+    frames.mark();  // "terrain": the terrain pass (and the separate feedback pass)
     // The compaction rides in the frame's command buffer, so its result is ready when the frame
     // is: feedback is typically frames_in_flight frames late, at most one more.
-    frames.submit(compactor.value()->record(cmd, t.feedback_buffer(), f));
+    const VkFence compaction = compactor.value()->record(cmd, t.feedback_buffer(), f);
+    frames.submit(compaction);  // the last stage: "compaction"
     v.end_frame();
     fr.vt = v.stats();
     fr.completed = v.last_completed();

@@ -3,6 +3,7 @@
 // writing feedback -> GPU feedback compaction -> residency -> compute composition into the
 // cache -> GPU page-table scatter.
 #pragma once
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -56,6 +57,9 @@ struct FlythroughFrame {
   // recentring, request selection: vt.select_ms of it).
   double cpu_ms = 0, wait_ms = 0, gpu_ms = 0, total_ms = 0, residency_ms = 0;
   uint64_t gpu_ms_frame = 0;
+  // gpu_ms by stage: VT (uploads, composition, stored copies, table scatter), terrain pass
+  // (with the separate feedback pass), feedback compaction.
+  std::array<double, 3> gpu_stage_ms{};
 };
 
 struct FlythroughSummary {

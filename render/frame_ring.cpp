@@ -37,9 +37,10 @@ Result<std::unique_ptr<FrameRing>> FrameRing::create(vk::Context& context, uint3
     VkQueryPoolCreateInfo qci{};
     qci.sType = VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO;
     qci.queryType = VK_QUERY_TYPE_TIMESTAMP;
-    qci.queryCount = 2 * frames_in_flight;
+    qci.queryCount = k_queries_per_slot * frames_in_flight;
     TVT_VK_CHECK(vkCreateQueryPool(device, &qci, nullptr, &r->queries_));
-    r->timestamps_ = context.create_buffer(sizeof(uint64_t) * 2 * frames_in_flight, VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
+    r->timestamps_ = context.create_buffer(sizeof(uint64_t) * k_queries_per_slot * frames_in_flight,
+                                           VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
   }
 
   r->slots_.resize(frames_in_flight);
@@ -77,9 +78,13 @@ std::optional<FrameTiming> FrameRing::collect(Slot& slot, uint32_t index) {
   // One queue: frames complete in submission order.
   if (!completed_through_ || t.frame > *completed_through_) completed_through_ = t.frame;
   if (queries_ == VK_NULL_HANDLE) return std::nullopt;
-  const uint64_t* ticks = static_cast<const uint64_t*>(timestamps_.mapped()) + 2 * index;
-  const uint64_t elapsed = (ticks[1] - ticks[0]) & timestamp_mask_;
-  t.gpu_ms = double(elapsed) * ns_per_tick_ * 1e-6;
+  // Start, the marks, end: consecutive differences (modulo the valid bits) are the stages.
+  const uint64_t* ticks = static_cast<const uint64_t*>(timestamps_.mapped()) + k_queries_per_slot * index;
+  const auto ms = [this](uint64_t from, uint64_t to) { return double((to - from) & timestamp_mask_) * ns_per_tick_ * 1e-6; };
+  const uint32_t last = slot.marks + 1;
+  t.gpu_ms = ms(ticks[0], ticks[last]);
+  if (slot.marks > 0)
+    for (uint32_t i = 1; i <= last; ++i) t.stage_ms.push_back(ms(ticks[i - 1], ticks[i]));
   return t;
 }
 
@@ -102,22 +107,31 @@ VkCommandBuffer FrameRing::begin(uint64_t frame) {
   bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
   TVT_VK_CHECK(vkBeginCommandBuffer(s.cmd, &bi));
   if (queries_ != VK_NULL_HANDLE) {
-    vkCmdResetQueryPool(s.cmd, queries_, 2 * index, 2);
-    vkCmdWriteTimestamp(s.cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, queries_, 2 * index);
+    vkCmdResetQueryPool(s.cmd, queries_, k_queries_per_slot * index, k_queries_per_slot);
+    vkCmdWriteTimestamp(s.cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, queries_, k_queries_per_slot * index);
   }
   s.frame = frame;
+  s.marks = 0;
   recording_ = index;
   last_frame_ = frame;
   return s.cmd;
+}
+
+void FrameRing::mark() {
+  TVT_CHECK(recording_);
+  Slot& s = slots_[*recording_];
+  if (queries_ == VK_NULL_HANDLE || s.marks == k_max_marks) return;
+  ++s.marks;
+  vkCmdWriteTimestamp(s.cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries_, k_queries_per_slot * *recording_ + s.marks);
 }
 
 void FrameRing::submit(VkFence also_signal) {
   TVT_CHECK(recording_);
   Slot& s = slots_[*recording_];
   if (queries_ != VK_NULL_HANDLE) {
-    const uint32_t first = 2 * *recording_;
-    vkCmdWriteTimestamp(s.cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries_, first + 1);
-    vkCmdCopyQueryPoolResults(s.cmd, queries_, first, 2, timestamps_.handle(), sizeof(uint64_t) * first,
+    const uint32_t first = k_queries_per_slot * *recording_, count = s.marks + 2;
+    vkCmdWriteTimestamp(s.cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries_, first + count - 1);
+    vkCmdCopyQueryPoolResults(s.cmd, queries_, first, count, timestamps_.handle(), sizeof(uint64_t) * first,
                               sizeof(uint64_t), VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT);
     vk::Context::memory_barrier(s.cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
                                 VK_PIPELINE_STAGE_HOST_BIT, VK_ACCESS_HOST_READ_BIT);

@@ -26,6 +26,9 @@ namespace tvt {
 struct FrameTiming {
   uint64_t frame = 0;
   double gpu_ms = 0;   // first to last command of the frame's command buffer (GPU timestamps)
+  // GPU ms of each stage the frame marked (FrameRing::mark()): stage i runs from mark i-1 (or
+  // the start) to mark i; the last entry runs from the last mark to the end.
+  std::vector<double> stage_ms;
 };
 
 class FrameRing {
@@ -41,6 +44,10 @@ class FrameRing {
   // Begins frame `frame` (greater than the previous one) in ring slot frame % K: waits until the
   // frame that last used the slot has completed, then returns its command buffer, recording.
   VkCommandBuffer begin(uint64_t frame);
+  // Ends the current stage of the frame being recorded: a timestamp once every command recorded
+  // so far has completed. At most k_max_marks per frame (more are ignored).
+  static constexpr uint32_t k_max_marks = 6;
+  void mark();
   // Ends and submits the command buffer begin() returned. `also_signal` (optional, unsignalled):
   // a fence of another owner that signals once this frame's commands have completed (an empty
   // submission right behind the frame's), e.g. the feedback compactor's for the compaction
@@ -62,7 +69,9 @@ class FrameRing {
     VkCommandBuffer cmd = VK_NULL_HANDLE;
     VkFence fence = VK_NULL_HANDLE;  // created signalled
     std::optional<uint64_t> frame;   // submitted and not yet reported by take_completed()
+    uint32_t marks = 0;              // mark() calls of that frame
   };
+  static constexpr uint32_t k_queries_per_slot = k_max_marks + 2;  // start, marks, end
   FrameRing() = default;
   // The slot's frame has completed (its fence signalled): its timing, once.
   std::optional<FrameTiming> collect(Slot& slot, uint32_t index);

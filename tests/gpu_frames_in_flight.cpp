@@ -207,3 +207,50 @@ TEST_F(GpuFramesInFlight, BadDepthIsAnErrorNamingTheField) {
   ASSERT_FALSE(vt.ok());
   EXPECT_NE(vt.error().message.find("frames_in_flight"), std::string::npos);
 }
+
+TEST_F(GpuFramesInFlight, RingReportsEveryFrameOnceWithItsStagesInOrder) {
+  auto ring = FrameRing::create(ctx(), 2);
+  ASSERT_TRUE(ring.ok());
+  FrameRing& r = *ring.value();
+  vk::Buffer scratch = ctx().create_buffer(1 << 20, VK_BUFFER_USAGE_TRANSFER_DST_BIT, false);
+  std::vector<FrameTiming> seen;
+  for (uint64_t f = 10; f < 16; ++f) {
+    VkCommandBuffer cmd = r.begin(f);
+    EXPECT_TRUE(f < 12 || r.completed(f - 2));  // begin(f) saw frame f - 2 complete
+    EXPECT_FALSE(r.completed(f));
+    vkCmdFillBuffer(cmd, scratch.handle(), 0, VK_WHOLE_SIZE, uint32_t(f));
+    r.mark();
+    vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
+                                VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT);
+    vkCmdFillBuffer(cmd, scratch.handle(), 0, VK_WHOLE_SIZE, ~uint32_t(f));
+    r.mark();
+    r.submit();
+    for (const FrameTiming& t : r.take_completed()) seen.push_back(t);
+  }
+  r.wait_idle();
+  for (const FrameTiming& t : r.take_completed()) seen.push_back(t);
+  EXPECT_TRUE(r.completed(15));
+  EXPECT_TRUE(r.take_completed().empty());  // each frame once
+  uint32_t valid_bits = 0;
+  {
+    uint32_t n = 0;
+    vkGetPhysicalDeviceQueueFamilyProperties(ctx().physical_device(), &n, nullptr);
+    std::vector<VkQueueFamilyProperties> p(n);
+    vkGetPhysicalDeviceQueueFamilyProperties(ctx().physical_device(), &n, p.data());
+    valid_bits = p[ctx().queue_family()].timestampValidBits;
+  }
+  if (valid_bits == 0) GTEST_SKIP() << "no timestamps on this queue";
+  ASSERT_EQ(seen.size(), 6u);
+  for (size_t i = 0; i < seen.size(); ++i) {
+    EXPECT_EQ(seen[i].frame, 10 + i);
+    ASSERT_EQ(seen[i].stage_ms.size(), 3u);
+    double sum = 0;
+    for (double ms : seen[i].stage_ms) {
+      EXPECT_GE(ms, 0.0);
+      sum += ms;
+    }
+    EXPECT_NEAR(sum, seen[i].gpu_ms, 1e-6 + 1e-9 * seen[i].gpu_ms);
+    EXPECT_GT(seen[i].gpu_ms, 0.0);
+    EXPECT_LT(seen[i].gpu_ms, 10000.0);
+  }
+}

@@ -156,7 +156,10 @@ int run_render(const RenderArgs& a) {
     // gpu: the GPU time of an earlier frame (frames in flight), named by its index.
     j["ms"] = {{"select", s.select_ms}, {"residency", fr.residency_ms}, {"cpu", fr.cpu_ms}, {"wait", fr.wait_ms},
                {"total", fr.total_ms}};
-    if (fr.gpu_ms_frame > 0 || fr.gpu_ms > 0) j["gpu"] = {{"frame", fr.gpu_ms_frame}, {"ms", fr.gpu_ms}};
+    if (fr.gpu_ms_frame > 0 || fr.gpu_ms > 0)
+      j["gpu"] = {{"frame", fr.gpu_ms_frame},         {"ms", fr.gpu_ms},
+                  {"vt_ms", fr.gpu_stage_ms[0]},      {"terrain_ms", fr.gpu_stage_ms[1]},
+                  {"compaction_ms", fr.gpu_stage_ms[2]}};
     stats_file << j.dump() << "\n";
     if (!a.quiet)
       std::fprintf(stderr, "\r  frame %u/%u  %6.1f ms  resident %u  +%u pages  bias %u%s   ", fr.index + 1, a.frames,
