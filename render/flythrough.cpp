@@ -38,6 +38,7 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
   v.set_debug_view(o.debug_view);
   TerrainRendererOptions ro;
   ro.width = o.width;
+  ro.lighting = o.lighting;
   ro.height = o.height;
   ro.vt = TerrainVtInputs{&v.info_buffer(), &v.entry_buffer(), &v.cache(), v.sampler(), o.feedback_divisor,
                           o.feedback_mode, o.max_anisotropy};

@@ -29,6 +29,7 @@ struct FlythroughOptions {
   uint32_t max_anisotropy = 1;          // VT taps per mip along the footprint (1: isotropic; <= B)
   VtSystemOptions vt;
   int debug_view = 0;                   // TVT_VT_VIEW_*: 1 colours every texel by its data mip
+  TerrainLighting lighting;             // sun, ambient, sky/fog, detail relief
   // Reads each frame's feedback exactly one frame late, waiting for it if needed, so two runs
   // of one path request the same pages at the same frames (comparisons, tests). Off: the
   // newest ready feedback, never a wait (what an engine does).

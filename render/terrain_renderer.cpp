@@ -41,6 +41,10 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
   const int sources = int(options.vt.has_value()) + int(options.direct.has_value()) + int(options.plain.has_value());
   if (sources > 1 || (sources == 1 && options.texel_output))
     return make_error("terrain renderer: vt, direct, plain and texel_output are exclusive");
+  if (!(std::isfinite(options.lighting.detail_relief_m) && options.lighting.detail_relief_m >= 0.0 &&
+        options.lighting.detail_relief_m <= 1e6))
+    return make_error("terrain renderer: lighting.detail_relief_m must be in [0, 1e6] metres, got " +
+                      std::to_string(options.lighting.detail_relief_m));
   const bool probe = options.vt && options.vt->probe_output;
   const FeedbackMode feedback = options.vt ? options.vt->feedback : FeedbackMode::None;
   if (probe && feedback == FeedbackMode::MainPass)
@@ -216,7 +220,7 @@ gpu::TvtTerrainFrame TerrainRenderer::frame_constants(const Camera& camera) cons
                        float(mpt));
   const ImageF& hf = mesh_.heightfield();
   f.terrain = glm::vec4(float(mesh_.height_m()), float(mesh_.extent_m() / hf.width),
-                        float(mesh_.extent_m() / hf.height), 0.0f);
+                        float(mesh_.extent_m() / hf.height), float(l.detail_relief_m));
   f.hf = glm::uvec4(uint32_t(hf.width), uint32_t(hf.height), mesh_.log2_vt(), 0u);
   f.sampling = glm::uvec4(0u);
   if (options_.plain) {

@@ -32,6 +32,9 @@ struct TerrainLighting {
   glm::dvec3 sky_color{0.56, 0.70, 0.88};      // linear; also the fog colour and clear colour
   double fog_density_per_m = -1.0;             // < 0: 1.5 / extent_m; 0: no fog
   std::optional<glm::dvec3> albedo_override;   // set: constant albedo instead of terrain_albedo()
+  // Relief of the material height (albedo alpha 0 .. 1) in metres for the detail normal; 0: the
+  // heightfield normal alone. Must be finite and >= 0.
+  double detail_relief_m = 1.0;
 };
 
 // Who writes the virtual texture's feedback (page ids at 1/N of the view resolution, DESIGN §5).

@@ -35,6 +35,19 @@ layout(location = 1) out uvec4 out_texel;  // x, y: floor of the texel coordinat
 layout(location = 1) out vec4 out_probe;   // vt_probe(); -1 everywhere when the albedo is overridden
 vec4 g_probe = vec4(-1.0);
 #endif
+// Set by terrain_albedo(): gradient of the albedo's alpha (the material height, 0 ... 1) per
+// level-0 texel, for the detail normal. Zero: flat.
+vec2 g_height_gradient = vec2(0.0);
+
+// Height gradient per level-0 texel from screen derivatives of `h` (for albedo sources without
+// a per-lane form): solves g . dtexel_dx = dFdx(h), g . dtexel_dy = dFdy(h). Call in uniform
+// control flow. Degenerate (edge-on) footprints give 0.
+vec2 screen_height_gradient(float h, vec2 dtx, vec2 dty) {
+  const float hx = dFdx(h), hy = dFdy(h);
+  const float det = dtx.x * dty.y - dtx.y * dty.x;
+  if (!(abs(det) > 1e-20)) return vec2(0.0);
+  return vec2(dty.y * hx - dtx.y * hy, dtx.x * hy - dty.x * hx) / det;
+}
 
 struct TerrainFragment {
   i64vec2 anchor_texel;  // level-0 VT texel of the camera (exact integers)
@@ -110,7 +123,7 @@ vec4 terrain_albedo(TerrainFragment f) {
 #ifdef TVT_TERRAIN_VT_PROBE
   g_probe = vt_probe(ti, tf, fp.lod);
 #endif
-  return vec4((k_max_anisotropy > 1 ? vt_sample_aniso(ti, tf, fp) : vt_sample(ti, tf, fp.lod)).rgb, 1.0);
+  return k_max_anisotropy > 1 ? vt_sample_aniso(ti, tf, fp, g_height_gradient) : vt_sample_dh(ti, tf, fp.lod, g_height_gradient);
 }
 #elif defined(TVT_TERRAIN_DIRECT)
 #include "shared/compose_types.h"
@@ -136,15 +149,18 @@ vec4 direct_texel(i64vec2 i, int mip) {
 
 // Bilinear between the four texel centres around the position, weighted as the VT's
 // hardware bilinear fetch weights them (vt_lookup's in-page coordinate minus 1/2).
-vec4 direct_bilinear(i64vec2 ti, vec2 tf, int mip) {
+// dh: the gradient of the filtered alpha per level-0 texel, as vt_height_gradient() gives it.
+vec4 direct_bilinear(i64vec2 ti, vec2 tf, int mip, out vec2 dh) {
   const int64_t m = int64_t(mip);
   const i64vec2 xi = ti >> m;
   const vec2 u = (vec2(ti - (xi << m)) + tf) * exp2(-float(mip)) - 0.5;
   const vec2 fu = floor(u);
   const vec2 w = u - fu;
   const i64vec2 i0 = xi + i64vec2(fu);
-  return mix(mix(direct_texel(i0, mip), direct_texel(i0 + i64vec2(1, 0), mip), w.x),
-             mix(direct_texel(i0 + i64vec2(0, 1), mip), direct_texel(i0 + i64vec2(1, 1), mip), w.x), w.y);
+  const vec4 c00 = direct_texel(i0, mip), c10 = direct_texel(i0 + i64vec2(1, 0), mip);
+  const vec4 c01 = direct_texel(i0 + i64vec2(0, 1), mip), c11 = direct_texel(i0 + i64vec2(1, 1), mip);
+  dh = vec2(mix(c10.a - c00.a, c11.a - c01.a, w.y), mix(c01.a - c00.a, c11.a - c10.a, w.x)) * exp2(-float(mip));
+  return mix(mix(c00, c10, w.x), mix(c01, c11, w.x), w.y);
 }
 
 // Direct splatting at matched LOD: the composition evaluated at the texel centres of the
@@ -158,9 +174,12 @@ vec4 terrain_albedo(TerrainFragment f) {
   const float l = clamp(vt_lod_iso(f.dtexel_dx, f.dtexel_dy, 0.0), 0.0, float(mip_count - 1));
   const int m0 = int(floor(l));
   const float t = m0 + 1 >= mip_count ? 0.0 : l - float(m0);
-  const vec4 a = direct_bilinear(ti, tf, m0);
-  if (t <= 0.0) return vec4(a.rgb, 1.0);
-  return vec4(mix(a, direct_bilinear(ti, tf, m0 + 1), t).rgb, 1.0);
+  const vec4 a = direct_bilinear(ti, tf, m0, g_height_gradient);
+  if (t <= 0.0) return a;
+  vec2 dh1;
+  const vec4 b = direct_bilinear(ti, tf, m0 + 1, dh1);
+  g_height_gradient = mix(g_height_gradient, dh1, t);
+  return mix(a, b, t);
 }
 #else
 // Direct splatting: the whole composition evaluated per pixel at the pixel's footprint (the
@@ -171,7 +190,9 @@ vec4 terrain_albedo(TerrainFragment f) {
   const i64vec2 sub = i64vec2(floor((f.local_texel - whole) * float(1 << TVT_FIXED_BITS)));
   const i64vec2 pos = (ti << int64_t(TVT_FIXED_BITS)) + sub;
   const float footprint = max(length(f.dtexel_dx), length(f.dtexel_dy));
-  return vec4(compose_sample(pos.x, pos.y, max(footprint, 1.0), 0xffffffffu).rgb, 1.0);
+  const vec4 c = compose_sample(pos.x, pos.y, max(footprint, 1.0), 0xffffffffu);
+  g_height_gradient = screen_height_gradient(c.a, f.dtexel_dx, f.dtexel_dy);
+  return c;
 }
 #endif
 #elif defined(TVT_TERRAIN_PLAIN)
@@ -188,7 +209,9 @@ vec4 terrain_albedo(TerrainFragment f) {
   const float to_plain = exp2(-float(F.sampling.x)), to_uv = exp2(-float(F.sampling.z));
   const vec2 uv = (vec2(hi) + (lo + f.local_texel) * to_plain) * to_uv;
   const float d = to_plain * to_uv;
-  return vec4(textureGrad(plain_texture, vec3(uv, 0.0), f.dtexel_dx * d, f.dtexel_dy * d).rgb, 1.0);
+  const vec4 c = textureGrad(plain_texture, vec3(uv, 0.0), f.dtexel_dx * d, f.dtexel_dy * d);
+  g_height_gradient = screen_height_gradient(c.a, f.dtexel_dx, f.dtexel_dy);
+  return c;
 }
 #else
 // Without a virtual texture (tests of the raster pass): a height/slope colour ramp (linear RGB).
@@ -200,9 +223,24 @@ vec4 terrain_albedo(TerrainFragment f) {
   c = mix(c, rock, smoothstep(0.55, 0.70, f.height01));
   c = mix(c, rock, smoothstep(0.12, 0.25, slope));
   c = mix(c, snow, smoothstep(0.78, 0.86, f.height01) * (1.0 - smoothstep(0.20, 0.35, slope)));
-  return vec4(c, 1.0);
+  return vec4(c, 1.0);  // no detail height: flat
 }
 #endif
+
+// Detail normal from the material height the albedo carries in alpha (DESIGN §2), relief
+// F.terrain.w metres from 0 to 1: g_height_gradient (per level-0 texel) over metres per texel
+// is the slope added to the heightfield's, n ~ (-Hx - hx, -Hy - hy, 1) = n / n.z - (hx, hy, 0).
+// The gradient is that of the filtered (mip-mapped) height, so detail fades with distance as
+// the mips average it out. Slopes are clamped to 4 (76 degrees); non-finite ones keep `n`.
+vec3 detail_normal(vec3 n, vec2 g) {
+  const float relief = F.terrain.w;
+  if (!(relief > 0.0)) return n;
+  vec2 slope = g * (relief / F.camera.w);  // metres per metre
+  const float len = length(slope);
+  if (!(len < 1e30)) return n;
+  if (len > 4.0) slope *= 4.0 / len;
+  return normalize(n - n.z * vec3(slope, 0.0));
+}
 
 void main() {
   TerrainFragment f;
@@ -216,7 +254,8 @@ void main() {
   f.distance_m = length(v_rel_m);
 
   const vec4 albedo = F.albedo_override.a > 0.0 ? F.albedo_override : terrain_albedo(f);
-  const float lambert = max(dot(f.normal, F.sun.xyz), 0.0);
+  const vec3 n = F.albedo_override.a > 0.0 ? f.normal : detail_normal(f.normal, g_height_gradient);
+  const float lambert = max(dot(n, F.sun.xyz), 0.0);
   const vec3 lit = albedo.rgb * (F.sun_color.rgb * (F.sun.w * lambert) + vec3(F.sun_color.a));
   const float fog = 1.0 - exp(-F.sky.a * f.distance_m);
   vec3 c = mix(lit, F.sky.rgb, fog);

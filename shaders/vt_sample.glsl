@@ -12,6 +12,28 @@ vec4 vt_fetch(uint slot, vec2 local) {
   return textureLod(vt_cache, vec3(local / float(VT.slot_texels), float(slot)), 0.0);
 }
 
+// Gradient of the bilinearly filtered alpha (the material height) at a position inside a slot,
+// in slot texels: the derivative of the bilinear interpolation of the 2x2 texels a fetch there
+// reads (textureGather of alpha picks exactly those). Per lane, no screen derivatives, so it
+// holds at triangle edges whatever helper invocations read.
+vec2 vt_height_gradient(uint slot, vec2 local) {
+  const vec4 a = textureGather(vt_cache, vec3(local / float(VT.slot_texels), float(slot)), 3);
+  // a: x (i0,j1), y (i1,j1), z (i1,j0), w (i0,j0)
+  const vec2 f = fract(local - 0.5);
+  return vec2(mix(a.z - a.w, a.y - a.x, f.y), mix(a.x - a.w, a.y - a.z, f.x));
+}
+
+// vt_sample_mip() with the height gradient in level-0 texels (0 without data or in the debug
+// view).
+vec4 vt_sample_mip_dh(ivec2 ti, vec2 tf, int mip, out vec2 dh) {
+  dh = vec2(0.0);
+  const VtLookup l = vt_lookup32(ti, tf, mip);
+  if (!l.valid) return vec4(1.0, 0.0, 1.0, 1.0);
+  if (VT.debug_view == TVT_VT_VIEW_DATA_MIP) return tvt_mip_colour(l.data_mip);
+  dh = vt_height_gradient(l.slot, l.local) * exp2(-float(l.data_mip));
+  return vt_fetch(l.slot, l.local);
+}
+
 vec4 vt_sample_mip(ivec2 ti, vec2 tf, int mip) {
   const VtLookup l = vt_lookup32(ti, tf, mip);
   if (!l.valid) return vec4(1.0, 0.0, 1.0, 1.0);  // no data at all: visible, never NaN
@@ -43,15 +65,31 @@ vec4 vt_sample(ivec2 ti, vec2 tf, float lod) {
 
 vec4 vt_sample(i64vec2 ti, vec2 tf, float lod) { return vt_sample(vt_texel32(ti), tf, lod); }
 
+// vt_sample() with the gradient of the filtered height in level-0 texels (blended like the colour).
+vec4 vt_sample_dh(ivec2 ti, vec2 tf, float lod, out vec2 dh) {
+  int m0;
+  float t;
+  vt_mip_pair(lod, m0, t);
+  const vec4 a = vt_sample_mip_dh(ti, tf, m0, dh);
+  if (t <= 0.0) return a;
+  vec2 dh1;
+  const vec4 b = vt_sample_mip_dh(ti, tf, m0 + 1, dh1);
+  dh = mix(dh, dh1, t);
+  return mix(a, b, t);
+}
+
 // Anisotropic, one mip: one page lookup, then `taps` bilinear taps inside that slot along
 // `axis` (level-0 texels; the taps sit at (i + 1/2)/taps - 1/2 of it, i = 0 .. taps-1). The tap
 // line is clamped to reach at most B - 1/2 data-mip texels from the centre, so every bilinear
 // tap stays inside the slot's border: the footprint never crosses into a page it did not look
 // up. vt_footprint() with taps <= B never needs the clamp at the wanted mip (docs/renderer.md).
-vec4 vt_sample_aniso_mip(ivec2 ti, vec2 tf, int mip, vec2 axis, int taps) {
+// dh: the height gradient at the footprint's centre, level-0 texels.
+vec4 vt_sample_aniso_mip(ivec2 ti, vec2 tf, int mip, vec2 axis, int taps, out vec2 dh) {
+  dh = vec2(0.0);
   const VtLookup l = vt_lookup32(ti, tf, mip);
   if (!l.valid) return vec4(1.0, 0.0, 1.0, 1.0);
   if (VT.debug_view == TVT_VT_VIEW_DATA_MIP) return tvt_mip_colour(l.data_mip);
+  dh = vt_height_gradient(l.slot, l.local) * exp2(-float(l.data_mip));
   if (taps <= 1) return vt_fetch(l.slot, l.local);
   vec2 a = axis * exp2(-float(l.data_mip));  // data-mip texels
   const float reach = length(a) * float(taps - 1) / float(2 * taps);  // farthest tap from the centre
@@ -63,13 +101,16 @@ vec4 vt_sample_aniso_mip(ivec2 ti, vec2 tf, int mip, vec2 axis, int taps) {
 }
 
 // Anisotropic trilinear: vt_sample_aniso_mip() on the two mips of fp.lod, blended.
-vec4 vt_sample_aniso(ivec2 ti, vec2 tf, VtFootprint fp) {
+vec4 vt_sample_aniso(ivec2 ti, vec2 tf, VtFootprint fp, out vec2 dh) {
   int m0;
   float t;
   vt_mip_pair(fp.lod, m0, t);
-  const vec4 a = vt_sample_aniso_mip(ti, tf, m0, fp.axis, fp.taps);
+  const vec4 a = vt_sample_aniso_mip(ti, tf, m0, fp.axis, fp.taps, dh);
   if (t <= 0.0) return a;
-  return mix(a, vt_sample_aniso_mip(ti, tf, m0 + 1, fp.axis, fp.taps), t);
+  vec2 dh1;
+  const vec4 b = vt_sample_aniso_mip(ti, tf, m0 + 1, fp.axis, fp.taps, dh1);
+  dh = mix(dh, dh1, t);
+  return mix(a, b, t);
 }
 
 // Feedback texel naming the page a sample at `lod` wants (vt_lod.glsl).

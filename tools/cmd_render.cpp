@@ -34,6 +34,7 @@ struct RenderArgs {
   std::string feedback = "main";
   uint32_t anisotropy = 1;
   uint32_t frames_in_flight = 2;
+  double detail_relief = TerrainLighting{}.detail_relief_m;
   uint32_t frames = 120;
   uint32_t every = 10;
   uint32_t width = 640, height = 360;
@@ -54,6 +55,8 @@ int run_render(const RenderArgs& a) {
   if (a.frames < 1 || a.frames > 100000) return fail(cmd, "--frames: must be between 1 and 100000", 2);
   if (a.every < 1) return fail(cmd, "--every: must be at least 1", 2);
   if (a.frames_in_flight < 1 || a.frames_in_flight > 8) return fail(cmd, "--frames-in-flight: must be between 1 and 8", 2);
+  if (!(a.detail_relief >= 0.0 && a.detail_relief <= 1000.0))
+    return fail(cmd, "--detail-relief: metres in [0, 1000], got " + std::to_string(a.detail_relief), 2);
   if (a.width < 16 || a.height < 16 || a.width > 8192 || a.height > 8192)
     return fail(cmd, "--width/--height: must be between 16 and 8192", 2);
   if (!(a.fps > 0.0 && a.fps <= 1000.0)) return fail(cmd, "--fps: must be in (0, 1000]", 2);
@@ -101,6 +104,7 @@ int run_render(const RenderArgs& a) {
   fo.feedback_mode = a.feedback == "separate" ? FeedbackMode::SeparatePass : FeedbackMode::MainPass;
   fo.max_anisotropy = a.anisotropy;
   fo.frames_in_flight = a.frames_in_flight;
+  fo.lighting.detail_relief_m = a.detail_relief;
   fo.debug_view = a.debug_mips ? 1 : 0;
   std::printf("terravt render: %s, V = 2^%u, %ux%u, %u frames, method %s, source %s, cache %u pages, budget %u/frame, device %s\n",
               assets->desc.source_path.c_str(), assets->desc.vt.log2_size, a.width, a.height, a.frames,
@@ -206,6 +210,7 @@ const CommandRegistrar k_register{
       app.add_option("--staging", a->staging, "Stored pages staged at once (loads outstanding at most)")->capture_default_str();
       app.add_option("--feedback", a->feedback, "Feedback written by the main pass (one rotating pixel per N x N) or a separate 1/N pass")->capture_default_str();
       app.add_option("--anisotropy", a->anisotropy, "VT taps per mip along the footprint (1: isotropic; at most the page border)")->capture_default_str();
+      app.add_option("--detail-relief", a->detail_relief, "Metres of material height relief for the detail normal (0: off)")->capture_default_str();
       app.add_option("--frames-in-flight", a->frames_in_flight, "Frames recorded ahead of the GPU (1: wait for each frame)")->capture_default_str();
       app.add_flag("--sync-loads", a->sync_loads, "Wait for each frame's stored pages (frame-exact comparisons)");
       app.add_option("--gpu", a->gpu_name, "Vulkan device name substring or index");

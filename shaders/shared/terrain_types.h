@@ -45,7 +45,7 @@ struct TvtTerrainFrame {   // 208 bytes
   vec4 sky;                // rgb: sky and fog colour (linear), a: fog density per metre
   vec4 albedo_override;    // a > 0: albedo is rgb instead of terrain_albedo() (tests, debugging)
   vec4 camera;             // xy: camera position minus anchor in texels ([0,1) over the terrain), z: camera z in metres, w: metres per texel
-  vec4 terrain;            // x: height_m (metres at height 1), y, z: metres per heightfield texel in x, y, w: 0
+  vec4 terrain;            // x: height_m (metres at height 1), y, z: metres per heightfield texel in x, y, w: detail relief in metres (0: off)
   uvec4 hf;                // x, y: heightfield width, height; z: log2 V; w: 0
   int64_t anchor_x;        // camera's level-0 VT texel (floor of camera position / metres per texel)
   int64_t anchor_y;
