@@ -5,6 +5,7 @@
 #include <bit>
 #include <cmath>
 #include <mutex>
+#include <thread>
 
 #include "shaders/shared/hash.h"
 
@@ -64,7 +65,22 @@ struct PackedScene::Cache {
 };
 
 Status PackedScene::load(uint32_t mask) const {
+  std::vector<size_t> todo;
   for (size_t n = 0; n < cache_->materials.size() && n < 32; ++n)
+    if ((mask & (1u << n)) && !cache_->materials[n]->done.load(std::memory_order_acquire)) todo.push_back(n);
+  // Several materials at once (the top page needs them all): one thread each, at most one per
+  // core; the cache makes concurrent first uses safe.
+  const size_t workers = std::min<size_t>(todo.size(), std::max(1u, std::thread::hardware_concurrency()));
+  if (workers > 1) {
+    std::atomic<size_t> next{0};
+    auto work = [&] {
+      for (size_t i = next++; i < todo.size(); i = next++) cache_->get(todo[i]);
+    };
+    std::vector<std::jthread> threads;
+    for (size_t t = 1; t < workers; ++t) threads.emplace_back(work);
+    work();
+  }
+  for (size_t n = 0; n < cache_->materials.size() && n < 32; ++n)  // first error in material order
     if (mask & (1u << n))
       if (const auto& m = cache_->get(n); m.error) return *m.error;
   return Ok{};
