@@ -239,13 +239,10 @@ TEST_F(GpuLazyMaterials, ComposedPagesAreByteIdenticalToTheEagerUploadForEveryMe
 // of other pages compose; the uploader counts what was read from disk.
 TEST_F(GpuLazyMaterials, AMaterialFileBrokenAfterLoadFailsOnlyTheBatchesThatNeedIt) {
   const auto dir = test::fresh_test_dir("tvt_gpu_lazy_files");
-  const std::string scene = test::write_split_scene(dir);
-  auto desc = load_scene_file(scene);
-  ASSERT_TRUE(desc.ok()) << desc.error().message;
-  auto assets = load_scene_assets(desc.value());
-  ASSERT_TRUE(assets.ok()) << assets.error().message;
+  std::string scene;
+  const SceneAssets assets = test::load_split_scene(dir, &scene);
   std::filesystem::remove(dir / "c.png");
-  auto packed = pack_scene(assets.value(), {});
+  auto packed = pack_scene(assets, {});
   ASSERT_TRUE(packed.ok());
   {
     auto created = GpuComposer::create(ctx(), packed.value(), 2, lazy_poisoned());
@@ -263,7 +260,7 @@ TEST_F(GpuLazyMaterials, AMaterialFileBrokenAfterLoadFailsOnlyTheBatchesThatNeed
               std::string::npos)
         << bad.error().message;
     EXPECT_EQ(c.upload_stats().load_failures, 1u);
-    EXPECT_FALSE(assets->materials->loaded(2));
+    EXPECT_FALSE(assets.materials->loaded(2));
     EXPECT_TRUE(c.compose_pages(std::vector<PageId>{PageId{0, 2, 5}}).ok());
   }
   std::filesystem::remove_all(dir);
@@ -274,11 +271,8 @@ TEST_F(GpuLazyMaterials, AMaterialFileBrokenAfterLoadFailsOnlyTheBatchesThatNeed
 // frame is reported (nothing is written), and no page of that batch becomes resident.
 TEST_F(GpuLazyMaterials, AFlythroughStopsWithTheFileAndFieldWhenAMaterialCannotBeLoaded) {
   const auto dir = test::fresh_test_dir("tvt_gpu_lazy_fly");
-  const std::string scene = test::write_split_scene(dir);
-  auto desc = load_scene_file(scene);
-  ASSERT_TRUE(desc.ok()) << desc.error().message;
-  auto assets = load_scene_assets(desc.value());
-  ASSERT_TRUE(assets.ok()) << assets.error().message;
+  std::string scene;
+  const SceneAssets assets = test::load_split_scene(dir, &scene);
   std::filesystem::remove(dir / "c.png");
   FlythroughOptions o;
   o.frames = 4;
@@ -286,7 +280,7 @@ TEST_F(GpuLazyMaterials, AFlythroughStopsWithTheFileAndFieldWhenAMaterialCannotB
   o.height = 64;
   o.vt.cache_slots = 64;
   uint32_t reported = 0;
-  auto s = run_flythrough(ctx(), assets.value(), o, [&](const FlythroughFrame&, const FlythroughViews&) {
+  auto s = run_flythrough(ctx(), assets, o, [&](const FlythroughFrame&, const FlythroughViews&) {
     ++reported;
     return true;
   });

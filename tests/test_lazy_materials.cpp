@@ -28,14 +28,7 @@ class LazyMaterials : public ::testing::Test {
   }
   void TearDown() override { fs::remove_all(dir); }
 
-  SceneAssets load() {
-    auto desc = load_scene_file(scene);
-    TVT_CHECK(desc.ok());
-    auto assets = load_scene_assets(desc.value());
-    if (!assets) ADD_FAILURE() << assets.error().message;
-    TVT_CHECK(assets.ok());
-    return std::move(assets.value());
-  }
+  SceneAssets load() { return test::load_split_scene(dir, &scene); }
 
   fs::path dir;
   std::string scene;
@@ -160,6 +153,37 @@ TEST_F(LazyMaterials, ConcurrentFirstUseLoadsOnce) {
   EXPECT_EQ(ok.load(), 8);
   EXPECT_EQ(a.materials->stats().reads, 2u);  // materials 1 and 2, once each
   for (const MaterialAssets* p : seen) EXPECT_EQ(p, seen[0]);
+}
+
+}  // namespace
+
+namespace {
+
+// An "fbpb" block promises features (the packer cannot see them without reading texels); a
+// mask without any fails the first FBPB page that reads the material, naming /materials/1/fbpb.
+TEST(LazyMaterialsFbpb, AFeaturelessMetaTextureFailsItsFirstFbpbPage) {
+  const fs::path dir = test::fresh_test_dir("tvt_lazy_fbpb");
+  test::write_split_scene(dir);
+  ASSERT_TRUE(write_image((dir / "m.png").string(), ImageRGBA8(32, 32)).ok());  // all zero: no features
+  const std::string scene = test::write_scene_json(dir, "fbpb.json", R"(
+    {"name": "a", "albedo": {"image": "a.png"}, "period_texels": 128, "weight": "remainder"},
+    {"name": "b", "albedo": {"image": "b.png"}, "period_texels": 96, "mode": "fbpb",
+     "weight": {"splat": {"image": "s.png", "channel": "r"}}, "fbpb": {"mask": "m.png"}})");
+  auto desc = load_scene_file(scene);
+  ASSERT_TRUE(desc.ok()) << desc.error().message;
+  auto assets = load_scene_assets(desc.value());
+  ASSERT_TRUE(assets.ok()) << assets.error().message;
+  auto fbpb = pack_scene(assets.value(), {});
+  ASSERT_TRUE(fbpb.ok());
+  EXPECT_EQ(fbpb->params.materials[1].mode, gpu::TVT_MODE_FBPB);  // laid out on the promise
+  auto page = compose_page_reference(fbpb.value(), PageId{0, 0, 0});
+  ASSERT_FALSE(page.ok());
+  EXPECT_NE(page.error().message.find(scene + ": /materials/1/fbpb: "), std::string::npos) << page.error().message;
+  // Modes that do not read features are unaffected.
+  auto blend = pack_scene(assets.value(), options_for(Method::BlendMap));
+  ASSERT_TRUE(blend.ok());
+  EXPECT_TRUE(compose_page_reference(blend.value(), PageId{0, 0, 0}).ok());
+  fs::remove_all(dir);
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "compose/image.h"
+#include "compose/scene_assets.h"
 #include "vt/result.h"
 
 namespace tvt::test {
@@ -22,6 +23,17 @@ inline ImageRGBA8 gradient_image(int size, uint8_t r, uint8_t g, uint8_t b) {
   return img;
 }
 
+// Writes `name` in `dir`: the split scene's terrain and VT with the given materials (JSON
+// array items). Returns the file's path.
+inline std::string write_scene_json(const std::filesystem::path& dir, const std::string& name,
+                                    const std::string& materials) {
+  const std::string scene = (dir / name).string();
+  std::ofstream(scene) << R"({"seed": 5, "terrain": {"heightmap": {"fbm": {"size": 16, "seed": 3}}},
+    "vt": {"log2_size": 10, "page_texels": 64, "border_texels": 4}, "materials": [)"
+                       << materials << "]}";
+  return scene;
+}
+
 inline std::string write_split_scene(const std::filesystem::path& dir) {
   TVT_CHECK(write_image((dir / "a.png").string(), gradient_image(32, 10, 20, 30)).ok());
   TVT_CHECK(write_image((dir / "b.png").string(), gradient_image(32, 100, 50, 0)).ok());
@@ -30,19 +42,22 @@ inline std::string write_split_scene(const std::filesystem::path& dir) {
   for (int y = 0; y < 16; ++y)
     for (int x = 0; x < 16; ++x) splat.at(x, y)[x < 8 ? 0 : 1] = 255, splat.at(x, y)[3] = 255;
   TVT_CHECK(write_image((dir / "s.png").string(), splat).ok());
-  const std::string scene = (dir / "scene.json").string();
-  std::ofstream(scene) << R"({
-    "seed": 5,
-    "terrain": {"heightmap": {"fbm": {"size": 16, "seed": 3}}},
-    "vt": {"log2_size": 10, "page_texels": 64, "border_texels": 4},
-    "materials": [
-      {"name": "a", "albedo": {"image": "a.png"}, "period_texels": 128, "weight": "remainder"},
-      {"name": "b", "albedo": {"image": "b.png"}, "period_texels": 96, "mode": "blendmap",
-       "weight": {"splat": {"image": "s.png", "channel": "r"}}},
-      {"name": "c", "albedo": {"image": "c.png"}, "period_texels": 64, "mode": "blendmap",
-       "weight": {"splat": {"image": "s.png", "channel": "g"}}}
-    ]})";
-  return scene;
+  return write_scene_json(dir, "scene.json", R"(
+    {"name": "a", "albedo": {"image": "a.png"}, "period_texels": 128, "weight": "remainder"},
+    {"name": "b", "albedo": {"image": "b.png"}, "period_texels": 96, "mode": "blendmap",
+     "weight": {"splat": {"image": "s.png", "channel": "r"}}},
+    {"name": "c", "albedo": {"image": "c.png"}, "period_texels": 64, "mode": "blendmap",
+     "weight": {"splat": {"image": "s.png", "channel": "g"}}})");
+}
+
+// write_split_scene() then load_scene_assets() (fatal on error); `scene_path` gets the file.
+inline SceneAssets load_split_scene(const std::filesystem::path& dir, std::string* scene_path) {
+  *scene_path = write_split_scene(dir);
+  auto desc = load_scene_file(*scene_path);
+  TVT_CHECK(desc.ok());
+  auto assets = load_scene_assets(desc.value());
+  TVT_CHECK(assets.ok());
+  return std::move(assets.value());
 }
 
 }  // namespace tvt::test
