@@ -148,6 +148,8 @@ int run_compare(const CompareArgs& a) {
   if (!std::filesystem::is_directory(a.out)) return fail(cmd, "--out: cannot create folder " + a.out, 2);
   auto assets = load_scene_and_assets(a.scene);
   if (!assets) return fail(cmd, assets.error().message, 2);
+  // Timings compare producers, not first-use loading: read every material up front.
+  if (auto loaded = assets->materials->load_all(); !loaded) return fail(cmd, loaded.error().message, 2);
   auto ctx = gpu_context(a.gpu_name);
   if (!ctx) return fail(cmd, ctx.error().message, 1);
   vk::Context& g = *ctx.value();
