@@ -53,6 +53,12 @@ struct ImageF {
 // write never leaves a half file behind.
 Result<ImageRGBA8> read_image_rgba8(const std::string& path);
 Result<ImageF> read_image_float(const std::string& path);  // all channels, as float
+// Size and channel count only (the file's header; no texel is read). The same open checks
+// and error text as the readers, so a file that fails here fails them the same way.
+struct ImageHeader {
+  int width = 0, height = 0, channels = 0;
+};
+Result<ImageHeader> read_image_header(const std::string& path);
 Status write_image(const std::string& path, const ImageRGBA8& image);
 Status write_image(const std::string& path, const ImageGray8& image);
 Status write_image(const std::string& path, const ImageF& image,

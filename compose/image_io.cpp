@@ -164,6 +164,13 @@ Result<ImageRGBA8> read_image_rgba8(const std::string& path) {
   return image;
 }
 
+Result<ImageHeader> read_image_header(const std::string& path) {
+  auto in = open_input(path);
+  if (!in) return in.error();
+  const OIIO::ImageSpec& spec = in.value()->spec();
+  return ImageHeader{spec.width, spec.height, spec.nchannels};
+}
+
 Result<ImageF> read_image_float(const std::string& path) {
   auto in = open_input(path);
   if (!in) return in.error();

@@ -1,12 +1,113 @@
 #include "compose/packed_scene.h"
 
 #include <algorithm>
+#include <atomic>
 #include <bit>
 #include <cmath>
+#include <mutex>
+#include <thread>
 
 #include "shaders/shared/hash.h"
 
 namespace tvt {
+
+struct PackedScene::Cache {
+  struct Material {
+    std::mutex mutex;              // guards the first pack
+    std::atomic<bool> done{false}; // words or error set
+    std::vector<uint32_t> texels, meta;
+    std::optional<Error> error;
+    bool expects_features = false; // an FBPB mode relies on features the pack took on trust
+  };
+  std::shared_ptr<const MaterialSource> source;
+  std::string source_path;
+  std::vector<std::unique_ptr<Material>> materials;
+  std::vector<gpu::TvtMaterial> layout;  // offsets and sizes, as packed
+
+  // Packs material n once; thread-safe.
+  const Material& get(size_t n) {
+    Material& m = *materials[n];
+    if (m.done.load(std::memory_order_acquire)) return m;
+    std::lock_guard lock(m.mutex);
+    if (m.done.load(std::memory_order_relaxed)) return m;
+    if (auto s = pack(n, m); !s) m.error = s.error();
+    m.done.store(true, std::memory_order_release);
+    return m;
+  }
+
+  Status pack(size_t n, Material& out) const {
+    auto assets = source->get(n);
+    if (!assets) return assets.error();
+    const MaterialAssets& ma = *assets.value();
+    const gpu::TvtMaterial& g = layout[n];
+    if (ma.albedo.resolution != g.resolution || int(ma.albedo.mips.size()) != g.mip_count)
+      return make_error(source_path + ": /materials/" + std::to_string(n) +
+                        "/albedo: size differs from the one the scene was laid out with");
+    for (const ImageRGBA8& mip : ma.albedo.mips)
+      for (size_t t = 0; t < mip.texels.size(); t += 4)
+        out.texels.push_back(uint32_t(mip.texels[t]) | uint32_t(mip.texels[t + 1]) << 8 |
+                             uint32_t(mip.texels[t + 2]) << 16 | uint32_t(mip.texels[t + 3]) << 24);
+    if (g.meta_offset == gpu::TVT_NO_META) return Ok{};
+    if (out.expects_features && (!ma.meta || ma.meta->feature_count == 0))
+      return make_error(source_path + ": /materials/" + std::to_string(n) +
+                        "/fbpb: the meta-texture has no features, but the scene was laid out expecting some "
+                        "(give a meta-texture or mask with features, or use mode blendmap/dpt)");
+    if (!ma.meta) {
+      out.meta.assign(2 * size_t(g.resolution) * size_t(g.resolution), 0u);
+      return Ok{};
+    }
+    for (const MetaTexel& t : ma.meta->texels) {
+      out.meta.push_back(uint32_t(uint16_t(t.dx)) | uint32_t(uint16_t(t.dy)) << 16);
+      out.meta.push_back(uint32_t(t.d) | uint32_t(t.f) << 8 | uint32_t(t.variation) << 16);
+    }
+    return Ok{};
+  }
+};
+
+Status PackedScene::load(uint32_t mask) const {
+  std::vector<size_t> todo;
+  for (size_t n = 0; n < cache_->materials.size() && n < 32; ++n)
+    if ((mask & (1u << n)) && !cache_->materials[n]->done.load(std::memory_order_acquire)) todo.push_back(n);
+  // Several materials at once (the top page needs them all): one thread each, at most one per
+  // core; the cache makes concurrent first uses safe.
+  const size_t workers = std::min<size_t>(todo.size(), std::max(1u, std::thread::hardware_concurrency()));
+  if (workers > 1) {
+    std::atomic<size_t> next{0};
+    auto work = [&] {
+      for (size_t i = next++; i < todo.size(); i = next++) cache_->get(todo[i]);
+    };
+    std::vector<std::jthread> threads;
+    for (size_t t = 1; t < workers; ++t) threads.emplace_back(work);
+    work();
+  }
+  for (size_t n = 0; n < cache_->materials.size() && n < 32; ++n)  // first error in material order
+    if (mask & (1u << n))
+      if (const auto& m = cache_->get(n); m.error) return *m.error;
+  return Ok{};
+}
+
+const MaterialSource& PackedScene::source() const { return *cache_->source; }
+
+uint32_t PackedScene::loaded_mask() const {
+  uint32_t mask = 0;
+  for (size_t n = 0; n < cache_->materials.size() && n < 32; ++n) {
+    const auto& m = *cache_->materials[n];
+    if (m.done.load(std::memory_order_acquire) && !m.error) mask |= 1u << n;
+  }
+  return mask;
+}
+
+std::span<const uint32_t> PackedScene::texels(size_t n) const {
+  const auto& m = cache_->get(n);
+  TVT_CHECK(!m.error && "material load failed: call PackedScene::load() first to get the error");
+  return m.texels;
+}
+
+std::span<const uint32_t> PackedScene::meta(size_t n) const {
+  const auto& m = cache_->get(n);
+  TVT_CHECK(!m.error && "material load failed: call PackedScene::load() first to get the error");
+  return m.meta;
+}
 
 namespace {
 constexpr std::pair<Method, std::string_view> k_method_names[] = {
@@ -78,27 +179,29 @@ Result<PackedScene> pack_scene(const SceneAssets& assets, const ComposeOptions& 
   p.linear_boost = float(d.linear_boost);
   out.weights = assets.weights.data;
 
+  const MaterialSource& source = *assets.materials;
+  if (source.size() != d.materials.size())
+    return make_error(d.source_path + ": /materials: " + std::to_string(d.materials.size()) + " described, " +
+                      std::to_string(source.size()) + " loaded");
+  out.cache_ = std::make_shared<PackedScene::Cache>();
+  out.cache_->source = assets.materials;
+  out.cache_->source_path = d.source_path;
   for (size_t n = 0; n < d.materials.size(); ++n) {
     const MaterialDesc& md = d.materials[n];
-    const MaterialAssets& ma = assets.materials[n];
+    const MaterialInfo info = source.info(n);
     gpu::TvtMaterial& g = p.materials[n];
     g.period_fp = to_fixed(md.period_texels);
-    g.resolution = ma.albedo.resolution;
+    g.resolution = info.resolution;
     g.log2_resolution = std::countr_zero(unsigned(g.resolution));
-    g.mip_count = int(ma.albedo.mips.size());
-    g.texel_offset = uint32_t(out.material_texels.size());
-    for (const ImageRGBA8& mip : ma.albedo.mips)
-      for (size_t t = 0; t < mip.texels.size(); t += 4)
-        out.material_texels.push_back(uint32_t(mip.texels[t]) | uint32_t(mip.texels[t + 1]) << 8 |
-                                      uint32_t(mip.texels[t + 2]) << 16 | uint32_t(mip.texels[t + 3]) << 24);
+    g.mip_count = info.mip_count;
+    g.texel_offset = uint32_t(out.texel_words);
+    for (int l = 0; l < g.mip_count; ++l) out.texel_words += (size_t(g.resolution) >> l) * (size_t(g.resolution) >> l);
     g.meta_offset = gpu::TVT_NO_META;
-    const bool has_features = ma.meta && ma.meta->feature_count > 0;
+    // Not loaded yet: an FBPB block promises features (checked when the material is loaded).
+    const bool has_features = info.meta && (!info.features_known || info.feature_count > 0);
     if (has_features) {
-      g.meta_offset = uint32_t(out.meta_texels.size() / 2);
-      for (const MetaTexel& t : ma.meta->texels) {
-        out.meta_texels.push_back(uint32_t(uint16_t(t.dx)) | uint32_t(uint16_t(t.dy)) << 16);
-        out.meta_texels.push_back(uint32_t(t.d) | uint32_t(t.f) << 8 | uint32_t(t.variation) << 16);
-      }
+      g.meta_offset = uint32_t(out.meta_words / 2);
+      out.meta_words += 2 * size_t(g.resolution) * size_t(g.resolution);
     }
     // Effective mode: the override applies to every layer above the base.
     Mode mode = (n > 0 && options.method) ? *options.method : md.mode;
@@ -110,6 +213,9 @@ Result<PackedScene> pack_scene(const SceneAssets& assets, const ComposeOptions& 
     if (mode == Mode::Dpt && layers == 0) mode = Mode::BlendMap;
     if (mode == Mode::FbpbDpt && layers == 0) mode = Mode::Fbpb;
     g.mode = mode_code(mode);
+    auto cached = std::make_unique<PackedScene::Cache::Material>();
+    cached->expects_features = has_features && !info.features_known && (mode == Mode::Fbpb || mode == Mode::FbpbDpt);
+    out.cache_->materials.push_back(std::move(cached));
     g.weight_layer = int(n);
     g.dpt_layer_count = int(layers);
     g.fbpb_salt = gpu::tvt_salt(d.seed, uint32_t(n), 0u, 1u);
@@ -136,6 +242,7 @@ Result<PackedScene> pack_scene(const SceneAssets& assets, const ComposeOptions& 
       gl.patch_texels = float(double(gl.patch_fp) / 256.0);
     }
   }
+  out.cache_->layout.assign(p.materials, p.materials + d.materials.size());
   return out;
 }
 

@@ -3,7 +3,9 @@
 // so the two differ only in their arithmetic (double vs float), never in their inputs.
 #pragma once
 #include <cstdint>
+#include <memory>
 #include <optional>
+#include <span>
 #include <string_view>
 #include <vector>
 
@@ -27,16 +29,43 @@ std::string_view to_string(Method method);  // "linear", "blendmap", "fbpb", "dp
 std::optional<Method> method_from_string(std::string_view text);
 ComposeOptions options_for(Method method);
 
+// The flat material buffers are laid out at pack time from what is known without texels
+// (MaterialInfo); material n's words are produced on first use (load()) and cached, shared by
+// every copy of the PackedScene. Thread-safe: load(), texels() and meta() may be called
+// concurrently; one material is packed once.
 struct PackedScene {
   gpu::TvtComposeParams params{};
-  std::vector<uint32_t> material_texels;  // RGBA8 words r | g<<8 | b<<16 | a<<24, all mips of all materials
-  std::vector<uint32_t> meta_texels;      // two words per texel: (dx & 0xffff) | dy<<16, d | f<<8 | v<<16
-  std::vector<float> weights;             // WeightGrid::data
-  bool has_meta() const { return !meta_texels.empty(); }
+  std::vector<float> weights;   // WeightGrid::data
+  size_t texel_words = 0;       // size of the flat texel buffer, uint32 words (all mips of all materials)
+  size_t meta_words = 0;        // size of the flat meta buffer, uint32 words
+  bool has_meta() const { return meta_words > 0; }
+
+  // Reads (or generates) and packs the materials of `mask` (bit n: material n) that are not yet
+  // packed. An error names the scene file, the field and the file; an FBPB material whose
+  // meta-texture turns out to have no features fails with /materials/n/fbpb (see pack_scene).
+  Status load(uint32_t mask) const;
+  Status load_all() const { return load(~0u); }
+  // Bit n: material n is packed.
+  uint32_t loaded_mask() const;
+  // Material n's words, at params.materials[n].texel_offset of the flat buffer: RGBA8 words
+  // r | g<<8 | b<<16 | a<<24, all mips. Loads on first use; a load error is fatal here, so
+  // callers that can meet one call load() first.
+  std::span<const uint32_t> texels(size_t n) const;
+  // Material n's meta words at 2 * meta_offset, two per texel: (dx & 0xffff) | dy<<16,
+  // d | f<<8 | v<<16; empty when meta_offset is TVT_NO_META.
+  std::span<const uint32_t> meta(size_t n) const;
+  // The materials' source (load counters).
+  const MaterialSource& source() const;
+
+  struct Cache;  // per material: once flag, packed words or error
+  std::shared_ptr<Cache> cache_;
 };
 
 // Resolves effective modes (an FBPB mode without features falls back to blend map / DPT, a
 // DPT mode without layers to blend map / FBPB) and converts sizes to 1/256 fixed point.
+// Features: a material whose meta-texture is not loaded yet is taken to have features (an
+// "fbpb" block is a promise); if its meta-texture then has none, load() of it fails naming
+// /materials/n/fbpb, at the first page that reads it. Nothing of the texels is read here.
 Result<PackedScene> pack_scene(const SceneAssets& assets, const ComposeOptions& options);
 
 }  // namespace tvt

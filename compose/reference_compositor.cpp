@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "compose/material_culling.h"
 #include "shaders/shared/hash.h"
 
 namespace tvt {
@@ -64,11 +65,14 @@ struct Ctx {
     return clamp01(w);
   }
 
+  // Index of `m` in the parameter block (materials are always passed by reference into it).
+  size_t index_of(const gpu::TvtMaterial& m) const { return size_t(&m - &p.materials[0]); }
+
   glm::dvec4 texel(const gpu::TvtMaterial& m, int level, int64_t x, int64_t y) const {
-    uint32_t offset = m.texel_offset;
+    uint32_t offset = 0;  // within material m's words
     for (int l = 0; l < level; ++l) offset += uint32_t(m.resolution >> l) * uint32_t(m.resolution >> l);
     const int64_t rl = m.resolution >> level;
-    const uint32_t w = s.material_texels[offset + uint32_t(tvt_floor_mod(y, rl) * rl + tvt_floor_mod(x, rl))];
+    const uint32_t w = s.texels(index_of(m))[offset + uint32_t(tvt_floor_mod(y, rl) * rl + tvt_floor_mod(x, rl))];
     return glm::dvec4(w & 0xffu, (w >> 8) & 0xffu, (w >> 16) & 0xffu, w >> 24) / 255.0;
   }
 
@@ -148,7 +152,11 @@ struct Ctx {
 
 uint8_t to_unorm8(double v) { return uint8_t(std::lround(clamp01(v) * 255.0)); }
 
-glm::dvec4 compose_sample_reference(const PackedScene& scene, int64_t x_fp, int64_t y_fp, double footprint) {
+namespace {
+
+// `mask`: materials the page may show (MaterialCuller); the others contribute b = 0 exactly, so
+// they are skipped without reading their texels.
+glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, double footprint, uint32_t mask) {
   const Ctx c(scene);
   const gpu::TvtComposeParams& p = scene.params;
   footprint = std::isfinite(footprint) ? std::max(footprint, 1.0 / 256.0) : 1.0;
@@ -167,6 +175,7 @@ glm::dvec4 compose_sample_reference(const PackedScene& scene, int64_t x_fp, int6
     const double plain = weights[n];
     weight_sum += plain;
     const int mode = m.mode;
+    if (!(mask & (1u << n))) continue;  // culled: no weight within its reach of the page
     // Layers with no weight anywhere the mode looks contribute nothing: skip the fetches.
     if (plain <= 0.0 && (mode == gpu::TVT_MODE_LINEAR || mode == gpu::TVT_MODE_BLENDMAP)) continue;
 
@@ -197,8 +206,9 @@ glm::dvec4 compose_sample_reference(const PackedScene& scene, int64_t x_fp, int6
         c.material_coord(m, x_fp, u, gx);
         c.material_coord(m, y_fp, v, gy);
         const int64_t lx = tvt_floor_mod(gx, R), ly = tvt_floor_mod(gy, R);
-        const size_t mi = size_t(m.meta_offset) + size_t(ly * R + lx);
-        const uint32_t w0 = scene.meta_texels[2 * mi], w1 = scene.meta_texels[2 * mi + 1];
+        const std::span<const uint32_t> meta = scene.meta(c.index_of(m));
+        const size_t mi = size_t(ly * R + lx);
+        const uint32_t w0 = meta[2 * mi], w1 = meta[2 * mi + 1];
         const int64_t dx = int16_t(w0 & 0xffffu), dy = int16_t(w0 >> 16);
         double d = double(w1 & 0xffu);
         const double f = double((w1 >> 8) & 0xffu) / 255.0;
@@ -214,7 +224,7 @@ glm::dvec4 compose_sample_reference(const PackedScene& scene, int64_t x_fp, int6
           const uint32_t hv = gpu::tvt_hash_coord(cx, cy, m.variation_salt);
           const int64_t vx = tvt_floor_mod(lx + int64_t(hv & 0xffffu), R);
           const int64_t vy = tvt_floor_mod(ly + int64_t(hv >> 16), R);
-          const uint32_t vw = scene.meta_texels[2 * (size_t(m.meta_offset) + size_t(vy * R + vx)) + 1];
+          const uint32_t vw = meta[2 * size_t(vy * R + vx) + 1];
           const double variation = double((vw >> 16) & 0xffu) / 255.0;
           if (variation < double(m.variation_threshold)) {
             d = 0.0;  // a chipped hole shows the layer below
@@ -238,7 +248,7 @@ glm::dvec4 compose_sample_reference(const PackedScene& scene, int64_t x_fp, int6
   return result;
 }
 
-glm::dvec4 compose_texel_reference(const PackedScene& scene, uint32_t mip, int64_t x, int64_t y) {
+glm::dvec4 compose_texel(const PackedScene& scene, uint32_t mip, int64_t x, int64_t y, uint32_t mask) {
   const gpu::TvtComposeParams& p = scene.params;
   const int64_t last = (int64_t(1) << (p.log2_vt - int(mip))) - 1;
   x = std::clamp<int64_t>(x, 0, last);
@@ -251,9 +261,19 @@ glm::dvec4 compose_texel_reference(const PackedScene& scene, uint32_t mip, int64
     for (int64_t sx = 0; sx < s; ++sx) {
       const int64_t xf = (x << sub_shift) + (((2 * sx + 1) << sub_shift) / (2 * s));
       const int64_t yf = (y << sub_shift) + (((2 * sy + 1) << sub_shift) / (2 * s));
-      sum += compose_sample_reference(scene, xf, yf, footprint);
+      sum += compose_sample(scene, xf, yf, footprint, mask);
     }
   return sum / double(s * s);
+}
+
+}  // namespace
+
+glm::dvec4 compose_sample_reference(const PackedScene& scene, int64_t x_fp, int64_t y_fp, double footprint) {
+  return compose_sample(scene, x_fp, y_fp, footprint, ~0u);
+}
+
+glm::dvec4 compose_texel_reference(const PackedScene& scene, uint32_t mip, int64_t x, int64_t y) {
+  return compose_texel(scene, mip, x, y, ~0u);
 }
 
 glm::dvec4 ground_truth_texel(const PackedScene& scene, uint32_t mip, int64_t x, int64_t y) {
@@ -268,15 +288,18 @@ glm::dvec4 ground_truth_texel(const PackedScene& scene, uint32_t mip, int64_t x,
   return sum / double(n * n);
 }
 
-std::vector<uint8_t> compose_page_reference(const PackedScene& scene, const PageId& page) {
+Result<std::vector<uint8_t>> compose_page_reference(const PackedScene& scene, const PageId& page) {
   const gpu::TvtComposeParams& p = scene.params;
+  // Exactly the materials the GPU composer reads for this page (its culling mask).
+  const uint32_t mask = MaterialCuller(scene).mask(page);
+  if (auto s = scene.load(mask); !s) return s.error();
   const int size = p.page_texels + 2 * p.border_texels;
   std::vector<uint8_t> out(size_t(size) * size_t(size) * 4);
   for (int ty = 0; ty < size; ++ty)
     for (int tx = 0; tx < size; ++tx) {
       const int64_t x = int64_t(page.x) * p.page_texels - p.border_texels + tx;
       const int64_t y = int64_t(page.y) * p.page_texels - p.border_texels + ty;
-      const glm::dvec4 v = compose_texel_reference(scene, page.mip, x, y);
+      const glm::dvec4 v = compose_texel(scene, page.mip, x, y, mask);
       uint8_t* o = &out[(size_t(ty) * size_t(size) + size_t(tx)) * 4];
       for (int c = 0; c < 4; ++c) o[c] = to_unorm8(v[c]);
     }

@@ -46,7 +46,9 @@ Region interesting_region(const SceneAssets& assets, uint32_t mip, int width, in
   // Score every weight texel, then sum over a window the size of the region.
   std::vector<double> score(size_t(g.width) * size_t(g.height), 0.0);
   for (int l = 1; l < g.layers; ++l) {
-    const bool features = assets.materials[size_t(l)].meta && assets.materials[size_t(l)].meta->feature_count > 0;
+    // Without reading texels: an FBPB meta-texture not loaded yet counts as having features.
+    const MaterialInfo info = assets.materials->info(size_t(l));
+    const bool features = info.meta && (!info.features_known || info.feature_count > 0);
     for (int y = 0; y < g.height; ++y)
       for (int x = 0; x < g.width; ++x) {
         const double p = g.at(l, x, y);

@@ -12,90 +12,9 @@ namespace tvt {
 
 namespace {
 
-std::string field(const SceneDesc& d, const std::string& pointer) { return d.source_path + ": " + pointer; }
+std::string field(const SceneDesc& d, const std::string& pointer) { return scene_field(d, pointer); }
 
 double clamp01(double v) { return std::isfinite(v) ? std::clamp(v, 0.0, 1.0) : 0.0; }
-
-// Derived seeds: a pure function of the scene seed and small integers, so every asset is
-// reproducible from the scene file alone.
-uint32_t derived_seed(uint32_t scene_seed, uint32_t index, uint32_t purpose) {
-  return gpu::tvt_salt(scene_seed, index, 0u, purpose + 100u);
-}
-
-ImageGray8 noise_gray(uint32_t resolution, uint32_t seed) {
-  const auto grid = fbm_grid(resolution, seed, 5, 4.0, 0.55, 2.0);
-  ImageGray8 out{int(resolution), int(resolution)};
-  for (size_t i = 0; i < grid.size(); ++i) out.texels[i] = uint8_t(std::lround(clamp01(grid[i]) * 255.0));
-  return out;
-}
-
-Result<ImageRGBA8> load_albedo(const SceneDesc& d, size_t index, GeneratedMaterial* generated) {
-  const MaterialDesc& m = d.materials[index];
-  const std::string ptr = "/materials/" + std::to_string(index) + "/albedo";
-  ImageRGBA8 albedo;
-  if (m.albedo.image_path.empty()) {
-    const uint32_t seed = m.albedo.seed ? m.albedo.seed : derived_seed(d.seed, uint32_t(index), 1);
-    auto g = generate_material(m.albedo.generator, m.albedo.resolution, seed);
-    if (!g) return make_error(field(d, ptr + "/generator") + ": " + g.error().message);
-    *generated = std::move(g.value());
-    return generated->albedo;
-  }
-  auto img = read_image_rgba8(m.albedo.image_path);
-  if (!img) return make_error(field(d, ptr + "/image") + ": " + img.error().message);
-  albedo = std::move(img.value());
-  if (albedo.width != albedo.height || !std::has_single_bit(unsigned(albedo.width)) || albedo.width > 4096)
-    return make_error(field(d, ptr + "/image") + ": " + m.albedo.image_path +
-                      ": must be square with a power-of-two size up to 4096, got " + std::to_string(albedo.width) +
-                      "x" + std::to_string(albedo.height));
-  if (!m.albedo.height_path.empty()) {
-    auto h = read_image_float(m.albedo.height_path);
-    if (!h) return make_error(field(d, ptr + "/height") + ": " + h.error().message);
-    if (h->width != albedo.width || h->height != albedo.height)
-      return make_error(field(d, ptr + "/height") + ": " + m.albedo.height_path + ": size " +
-                        std::to_string(h->width) + "x" + std::to_string(h->height) + " differs from the albedo's " +
-                        std::to_string(albedo.width) + "x" + std::to_string(albedo.height));
-    for (int y = 0; y < albedo.height; ++y)
-      for (int x = 0; x < albedo.width; ++x)
-        albedo.at(x, y)[3] = uint8_t(std::lround(clamp01(h->at(x, y, 0)) * 255.0));
-  }
-  return albedo;
-}
-
-Result<std::optional<MetaTexture>> load_meta(const SceneDesc& d, size_t index, const ImageRGBA8& albedo,
-                                             const GeneratedMaterial& generated) {
-  const MaterialDesc& m = d.materials[index];
-  if (!m.has_fbpb) return std::optional<MetaTexture>{};
-  const std::string ptr = "/materials/" + std::to_string(index) + "/fbpb";
-  const uint32_t res = uint32_t(albedo.width);
-  if (!m.fbpb.meta_path.empty()) {
-    auto meta = read_meta_texture(m.fbpb.meta_path);
-    if (!meta) return make_error(field(d, ptr + "/meta") + ": " + meta.error().message);
-    if (meta->resolution != albedo.width)
-      return make_error(field(d, ptr + "/meta") + ": " + m.fbpb.meta_path + ": resolution " +
-                        std::to_string(meta->resolution) + " differs from the albedo's " + std::to_string(res));
-    return std::optional<MetaTexture>(std::move(meta.value()));
-  }
-  const ImageGray8 variation =
-      generated.variation.width == int(res) ? generated.variation : noise_gray(res, derived_seed(d.seed, uint32_t(index), 2));
-  FeatureLabels labels;
-  if (!m.fbpb.mask_path.empty()) {
-    auto mask = read_image_rgba8(m.fbpb.mask_path);
-    if (!mask) return make_error(field(d, ptr + "/mask") + ": " + mask.error().message);
-    if (mask->width != albedo.width || mask->height != albedo.height)
-      return make_error(field(d, ptr + "/mask") + ": " + m.fbpb.mask_path + ": size differs from the albedo's");
-    ImageGray8 gray(mask->width, mask->height);
-    for (int y = 0; y < gray.height; ++y)
-      for (int x = 0; x < gray.width; ++x) gray.at(x, y) = mask->at(x, y)[0];
-    labels = labels_from_mask(gray, 8);
-  } else if (!generated.feature_labels.empty()) {
-    labels.resolution = int(res);
-    labels.labels = generated.feature_labels;
-    labels.count = generated.feature_count;
-  } else {
-    labels = isolate_features(albedo, IsolationOptions{});
-  }
-  return std::optional<MetaTexture>(build_meta_texture(labels, variation, 2.0));
-}
 
 Result<ImageF> load_heightfield(const SceneDesc& d) {
   const HeightmapDesc& h = d.terrain.heightmap;
@@ -132,7 +51,7 @@ Status fill_weight_layer(const SceneDesc& d, size_t index, const ImageF& hf, Wei
     uint32_t ns = 0;
     if (w.noise_amplitude > 0) {
       ns = std::bit_ceil(uint32_t(std::max(grid.width, grid.height)));
-      noise = fbm_grid(ns, derived_seed(d.seed, uint32_t(index), 3), 5, w.noise_frequency, 0.5, 2.0);
+      noise = fbm_grid(ns, derived_asset_seed(d.seed, uint32_t(index), 3), 5, w.noise_frequency, 0.5, 2.0);
     }
     for (int y = 0; y < grid.height; ++y)
       for (int x = 0; x < grid.width; ++x) {
@@ -187,25 +106,6 @@ double window_weight(double v, double lo, double hi, double fade) {
   return smooth(lo - fade, lo, v) * (1.0 - smooth(hi, hi + fade, v));
 }
 
-MipChain build_mip_chain(const ImageRGBA8& level0) {
-  MipChain chain;
-  chain.resolution = level0.width;
-  chain.mips.push_back(level0);
-  while (chain.mips.back().width > 1) {
-    const ImageRGBA8& src = chain.mips.back();
-    ImageRGBA8 dst(src.width / 2, src.height / 2);
-    for (int y = 0; y < dst.height; ++y)
-      for (int x = 0; x < dst.width; ++x)
-        for (int c = 0; c < 4; ++c) {
-          const int sum = src.at(2 * x, 2 * y)[c] + src.at(2 * x + 1, 2 * y)[c] + src.at(2 * x, 2 * y + 1)[c] +
-                          src.at(2 * x + 1, 2 * y + 1)[c];
-          dst.at(x, y)[c] = uint8_t((sum + 2) / 4);
-        }
-    chain.mips.push_back(std::move(dst));
-  }
-  return chain;
-}
-
 Result<SceneAssets> load_scene_assets(const SceneDesc& desc) {
   SceneAssets assets;
   assets.desc = desc;
@@ -213,17 +113,9 @@ Result<SceneAssets> load_scene_assets(const SceneDesc& desc) {
   if (!hf) return hf.error();
   assets.heightfield = std::move(hf.value());
 
-  for (size_t i = 0; i < desc.materials.size(); ++i) {
-    GeneratedMaterial generated;
-    auto albedo = load_albedo(desc, i, &generated);
-    if (!albedo) return albedo.error();
-    auto meta = load_meta(desc, i, albedo.value(), generated);
-    if (!meta) return meta.error();
-    MaterialAssets m;
-    m.albedo = build_mip_chain(albedo.value());
-    m.meta = std::move(meta.value());
-    assets.materials.push_back(std::move(m));
-  }
+  auto materials = MaterialSource::open(desc);
+  if (!materials) return materials.error();
+  assets.materials = std::move(materials.value());
 
   WeightGrid& grid = assets.weights;
   grid.width = assets.heightfield.width;

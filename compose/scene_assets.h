@@ -1,24 +1,19 @@
 // Everything a scene needs at composition time, loaded from a SceneDesc: the heightfield,
 // the low-resolution weight grid (one layer per material) and each material's mip chain and
-// FBPB meta-texture. Loading is explicit so callers decide when I/O happens.
+// FBPB meta-texture, the last two on first use (MaterialSource).
 #pragma once
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <vector>
 
 #include "compose/image.h"
+#include "compose/material_source.h"
 #include "compose/metatex.h"
 #include "compose/scene.h"
 #include "vt/result.h"
 
 namespace tvt {
-
-// Box-filtered mip chain of a square power-of-two tileable RGBA8 texture (wrap-around).
-struct MipChain {
-  int resolution = 0;
-  std::vector<ImageRGBA8> mips;  // mips[0] is full resolution, last is 1x1
-};
-MipChain build_mip_chain(const ImageRGBA8& level0);
 
 // Weight grid covering the whole terrain: texel (i, j) sits at terrain position
 // ((i + 0.5) / width, (j + 0.5) / height) of the extent. Layer n is material n's weight in [0,1].
@@ -32,19 +27,18 @@ struct WeightGrid {
   }
 };
 
-struct MaterialAssets {
-  MipChain albedo;                 // RGB albedo, A height / blend map
-  std::optional<MetaTexture> meta; // FBPB features, when the material has any
-};
-
 struct SceneAssets {
   SceneDesc desc;
   ImageF heightfield;              // normalised heights in [0,1], 1 channel
   WeightGrid weights;
-  std::vector<MaterialAssets> materials;
+  // Material textures and meta-textures, read on first use (compose/material_source.h).
+  // Shared: copies of the assets and every PackedScene made from them use one cache.
+  std::shared_ptr<MaterialSource> materials = MaterialSource::in_memory();
 };
 
-// Loads or generates every input. Errors name the scene file, the field and the file.
+// Loads or generates the heightfield and the weights, and opens the materials: their headers
+// are checked here, their texels read on first use. Errors name the scene file, the field and
+// the file.
 Result<SceneAssets> load_scene_assets(const SceneDesc& desc);
 
 // Weight rule evaluation (exposed for tests): smoothstep window, 1 inside [lo, hi], falling

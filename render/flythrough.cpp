@@ -102,7 +102,7 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
     const uint32_t cy = uint32_t(std::clamp(fr.camera.position_m.y / mpt, 0.0, vt_max));
     v.begin_frame(f + 1, cx, cy, feedback);
     fr.residency_ms = ms_between(o.deterministic ? w1 : w0, std::chrono::steady_clock::now());
-    v.record(cmd);
+    const Status recorded = v.record(cmd);  // a complete frame even when composition failed
     frames.mark();  // GPU stage "vt": material uploads, composition, stored-page copies, table scatter
     t.record(cmd, fr.camera);
     frames.mark();  // "terrain": the terrain pass (and the separate feedback pass)
@@ -111,6 +111,13 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
     const VkFence compaction = compactor.value()->record(cmd, t.feedback_buffer(), f);
     frames.submit(compaction);  // the last stage: "compaction"
     v.end_frame();
+    if (!recorded) {
+      // A material could not be loaded on first use: stop before this frame is reported or
+      // written anywhere; the error names the scene file, the field and the image file.
+      frames.wait_idle();
+      g.wait_idle();
+      return recorded.error();
+    }
     fr.vt = v.stats();
     fr.completed = v.last_completed();
     if (v.stored()) fr.store_errors = v.stored()->take_error_messages();

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <cstring>
 
 #include "shaders/shared/compose_bindings.h"
@@ -32,7 +33,8 @@ Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, c
   c->materials_ = std::make_unique<MaterialUploader>(context, scene, c->records_in_flight_);
   if (options.poison_materials)
     context.run_commands([&](VkCommandBuffer cmd) { c->materials_->fill(cmd, 0xffffffffu); });
-  if (!options.lazy_materials) c->materials_->upload_all();
+  if (!options.lazy_materials)
+    if (auto s = c->materials_->upload_all(); !s) return s.error();
   c->job_buffer_ = context.create_buffer(sizeof(gpu::TvtPageJob) * slots * c->records_in_flight_,
                                          VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
   c->readback_buffer_ = context.create_buffer(VkDeviceSize(c->slot_texels_) * c->slot_texels_ * 4 * slots,
@@ -61,7 +63,9 @@ Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, c
 }
 
 const MaterialUploader& GpuComposer::all_materials() const {
-  materials_->upload_all();
+  const Status s = materials_->upload_all();
+  if (!s) std::fprintf(stderr, "%s\n", s.error().message.c_str());
+  TVT_CHECK(s.ok());
   return *materials_;
 }
 
@@ -72,7 +76,7 @@ void GpuComposer::set_params(const gpu::TvtComposeParams& params) {
   std::memcpy(params_buffer_.mapped(), &params_, sizeof(params_));
 }
 
-void GpuComposer::record(VkCommandBuffer cmd, std::span<const PageJob> jobs) {
+Status GpuComposer::record(VkCommandBuffer cmd, std::span<const PageJob> jobs) {
   TVT_CHECK(jobs.size() <= slots_);
   // This call's part of the job ring; the call that last used it has completed (contract).
   const uint32_t job_offset = uint32_t(records_++ % records_in_flight_) * slots_;
@@ -84,8 +88,9 @@ void GpuComposer::record(VkCommandBuffer cmd, std::span<const PageJob> jobs) {
     dst[i] = gpu::TvtPageJob{jobs[i].page.mip, jobs[i].page.x, jobs[i].page.y, jobs[i].slot, mask, 0u, 0u, 0u};
     if (params_.pattern == gpu::TVT_COMPOSE_PATTERN_NONE) needed.merge(culler_->needs(jobs[i].page, mask));
   }
-  materials_->record(cmd, needed);  // also with no jobs: the per-record counters restart
-  if (jobs.empty()) return;
+  // Also with no jobs: the per-record counters restart.
+  if (auto s = materials_->record(cmd, needed); !s) return s;
+  if (jobs.empty()) return Ok{};
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.handle());
   const VkDescriptorSet set = descriptors_.handle();
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.layout(), 0, 1, &set, 0, nullptr);
@@ -93,9 +98,10 @@ void GpuComposer::record(VkCommandBuffer cmd, std::span<const PageJob> jobs) {
   vkCmdPushConstants(cmd, pipeline_.layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
   const uint32_t groups = (slot_texels_ + gpu::TVT_COMPOSE_GROUP - 1) / gpu::TVT_COMPOSE_GROUP;
   vkCmdDispatch(cmd, groups, groups, uint32_t(jobs.size()));
+  return Ok{};
 }
 
-std::vector<std::vector<uint8_t>> GpuComposer::compose_pages(std::span<const PageId> pages) {
+Result<std::vector<std::vector<uint8_t>>> GpuComposer::compose_pages(std::span<const PageId> pages) {
   std::vector<std::vector<uint8_t>> out;
   out.reserve(pages.size());
   const size_t page_bytes = size_t(slot_texels_) * slot_texels_ * 4;
@@ -103,8 +109,10 @@ std::vector<std::vector<uint8_t>> GpuComposer::compose_pages(std::span<const Pag
     const size_t count = std::min<size_t>(slots_, pages.size() - first);
     std::vector<PageJob> jobs(count);
     for (size_t i = 0; i < count; ++i) jobs[i] = PageJob{pages[first + i], uint32_t(i)};
+    Status recorded = Ok{};
     context_->run_commands([&](VkCommandBuffer cmd) {
-      record(cmd, jobs);
+      recorded = record(cmd, jobs);
+      if (!recorded) return;
       vk::Context::transition(cmd, output_, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
       VkBufferImageCopy region{};
       region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, uint32_t(count)};
@@ -113,18 +121,22 @@ std::vector<std::vector<uint8_t>> GpuComposer::compose_pages(std::span<const Pag
                              &region);
       vk::Context::transition(cmd, output_, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL);
     });
+    if (!recorded) return recorded.error();
     const auto* src = static_cast<const uint8_t*>(readback_buffer_.mapped());
     for (size_t i = 0; i < count; ++i) out.emplace_back(src + i * page_bytes, src + (i + 1) * page_bytes);
   }
   return out;
 }
 
-double GpuComposer::time_batch(std::span<const PageId> pages, int repeats) {
+Result<double> GpuComposer::time_batch(std::span<const PageId> pages, int repeats) {
   TVT_CHECK(pages.size() <= slots_);
   std::vector<PageJob> jobs(pages.size());
   for (size_t i = 0; i < pages.size(); ++i) jobs[i] = PageJob{pages[i], uint32_t(i)};
   const auto start = std::chrono::steady_clock::now();
-  for (int r = 0; r < repeats; ++r) context_->run_commands([&](VkCommandBuffer cmd) { record(cmd, jobs); });
+  Status recorded = Ok{};
+  for (int r = 0; r < repeats && recorded; ++r)
+    context_->run_commands([&](VkCommandBuffer cmd) { recorded = record(cmd, jobs); });
+  if (!recorded) return recorded.error();
   const auto end = std::chrono::steady_clock::now();
   return std::chrono::duration<double>(end - start).count() / std::max(repeats, 1);
 }

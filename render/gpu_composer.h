@@ -56,19 +56,25 @@ class GpuComposer {
   // Records the composition of `jobs` into the output image, which must be in layout GENERAL
   // (create() leaves it so), preceded by the upload of materials the jobs need for the first
   // time. Jobs are copied into a host-visible buffer; at most slots() jobs. The commands of
-  // the previous record() must have completed, and `cmd` must be submitted.
-  void record(VkCommandBuffer cmd, std::span<const PageJob> jobs);
+  // the previous record() must have completed, and `cmd` must be submitted. A material read
+  // for the first time is loaded from disk first; if that fails, nothing is recorded and the
+  // error (scene file, field, image file) is returned: the jobs' slots hold nothing new.
+  Status record(VkCommandBuffer cmd, std::span<const PageJob> jobs);
 
   // Composes pages and reads them back (blocking; tools and tests). Any number of pages:
   // they are processed in batches of slots(). Each result is (P+2B)^2 RGBA8, row-major.
-  std::vector<std::vector<uint8_t>> compose_pages(std::span<const PageId> pages);
+  Result<std::vector<std::vector<uint8_t>>> compose_pages(std::span<const PageId> pages);
 
   // Times `repeats` batches of `pages` on the GPU (submit + wait), returns seconds per batch.
-  double time_batch(std::span<const PageId> pages, int repeats);
+  Result<double> time_batch(std::span<const PageId> pages, int repeats);
+
+  // Loads and uploads every material (blocking): call before the buffer accessors below to
+  // get a load error as a Status instead of a fatal check.
+  Status upload_all_materials() { return materials_->upload_all(); }
 
   // The scene buffers (compose_sample.glsl's inputs), for passes that compose per pixel: such
   // a pass may read any material, so the material accessors first upload every material that
-  // is not on the GPU yet (blocking, once).
+  // is not on the GPU yet (blocking, once; a load error there is fatal: see upload_all_materials()).
   const vk::Buffer& params_buffer() const { return params_buffer_; }
   const vk::Buffer& material_buffer() const { return all_materials().texels(); }
   const vk::Buffer& meta_buffer() const { return all_materials().meta(); }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <chrono>
 #include <cstring>
 
 namespace tvt {
@@ -14,7 +15,7 @@ VkDeviceSize device_bytes(size_t bytes) { return std::max<VkDeviceSize>(16, VkDe
 }  // namespace
 
 MaterialUploader::MaterialUploader(vk::Context& context, const PackedScene& scene, uint32_t records_in_flight)
-    : context_(&context), staging_ring_(std::max(records_in_flight, 1u)) {
+    : context_(&context), scene_(scene), staging_ring_(std::max(records_in_flight, 1u)) {
   const gpu::TvtComposeParams& p = scene.params;
   TVT_CHECK(p.material_count >= 1 && p.material_count <= gpu::TVT_MAX_MATERIALS);
   layer_floats_ = size_t(p.weight_width) * size_t(p.weight_height);
@@ -34,10 +35,10 @@ MaterialUploader::MaterialUploader(vk::Context& context, const PackedScene& scen
     }
     mat.level_first.push_back(at);
     mat.texels = {m.texel_offset, at - m.texel_offset};
-    TVT_CHECK(at <= scene.material_texels.size());
+    TVT_CHECK(at <= scene.texel_words);
     if (m.meta_offset != gpu::TVT_NO_META) {
       mat.meta = {2 * size_t(m.meta_offset), 2 * size_t(m.resolution) * size_t(m.resolution)};
-      TVT_CHECK(mat.meta.first + mat.meta.count <= scene.meta_texels.size());
+      TVT_CHECK(mat.meta.first + mat.meta.count <= scene.meta_words);
     }
     mat.meta_resident = mat.meta.count == 0;
     mat.resident_from = m.mip_count;
@@ -49,11 +50,11 @@ MaterialUploader::MaterialUploader(vk::Context& context, const PackedScene& scen
     materials_.push_back(std::move(mat));
   }
   stats_.materials = uint32_t(p.material_count);
-  host_texels_ = scene.material_texels;
-  host_meta_ = scene.meta_texels;
+  texel_words_ = scene.texel_words;
+  meta_words_ = scene.meta_words;
   host_weights_ = scene.weights;
-  texel_buffer_ = context.create_buffer(device_bytes(host_texels_.size() * 4), k_device_usage, false);
-  meta_buffer_ = context.create_buffer(device_bytes(host_meta_.size() * 4), k_device_usage, false);
+  texel_buffer_ = context.create_buffer(device_bytes(texel_words_ * 4), k_device_usage, false);
+  meta_buffer_ = context.create_buffer(device_bytes(meta_words_ * 4), k_device_usage, false);
   weight_buffer_ = context.create_buffer(device_bytes(host_weights_.size() * 4), k_device_usage, false);
 }
 
@@ -86,19 +87,40 @@ void MaterialUploader::fill(VkCommandBuffer cmd, uint32_t word) {
                               VK_ACCESS_MEMORY_READ_BIT | VK_ACCESS_MEMORY_WRITE_BIT);
 }
 
-void MaterialUploader::record(VkCommandBuffer cmd, const MaterialNeeds& needs) {
+Status MaterialUploader::load(uint32_t mask) {
+  mask &= all_mask();
+  const uint32_t before = scene_.loaded_mask();
+  stats_.last_cpu_loaded = 0;
+  stats_.last_cpu_load_ms = 0.0;
+  if ((before & mask) == mask) return Ok{};
+  const auto t0 = std::chrono::steady_clock::now();
+  const Status s = scene_.load(mask);
+  const uint32_t after = scene_.loaded_mask();
+  stats_.last_cpu_load_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  stats_.cpu_load_ms += stats_.last_cpu_load_ms;
+  stats_.last_cpu_loaded = uint32_t(std::popcount(after & ~before));
+  stats_.cpu_loaded = uint32_t(std::popcount(after));
+  if (!s) ++stats_.load_failures;
+  return s;
+}
+
+Status MaterialUploader::record(VkCommandBuffer cmd, const MaterialNeeds& needs) {
   // The call that used this ring entry records_in_flight calls ago has completed (contract).
   std::vector<vk::Buffer>& keep = staging_ring_[records_++ % staging_ring_.size()];
   keep.clear();
   stats_.last_materials = 0;
   stats_.last_bytes = 0;
-  if (!all_resident()) record_copies(cmd, needs, keep);
+  if (all_resident()) return Ok{};
+  if (auto s = load(needs.mask); !s) return s;
+  record_copies(cmd, needs, keep);
+  return Ok{};
 }
 
-void MaterialUploader::upload_all() {
-  if (all_resident()) return;
+Status MaterialUploader::upload_all() {
+  if (all_resident()) return Ok{};
   stats_.last_materials = 0;
   stats_.last_bytes = 0;
+  if (auto s = load(all_mask()); !s) return s;
   // One material per submission bounds the staging memory; not the ring: a recorded upload
   // that is not submitted yet may still own it.
   const MaterialNeeds all = everything();
@@ -109,6 +131,7 @@ void MaterialUploader::upload_all() {
     std::vector<vk::Buffer> keep;
     context_->run_commands([&](VkCommandBuffer cmd) { record_copies(cmd, one, keep); });
   }
+  return Ok{};
 }
 
 void MaterialUploader::record_copies(VkCommandBuffer cmd, const MaterialNeeds& needs, std::vector<vk::Buffer>& keep) {
@@ -127,12 +150,13 @@ void MaterialUploader::record_copies(VkCommandBuffer cmd, const MaterialNeeds& n
     const int finest = std::min<int>(needs.finest_level[n], m.layout.mip_count - 1);
     if (finest < m.resident_from) {  // levels [finest, resident_from): contiguous in the chain
       const size_t first = m.level_first[size_t(finest)], end = m.level_first[size_t(m.resident_from)];
-      pieces.push_back({host_texels_.data() + first, 4 * (end - first), 0, 4 * first});
+      pieces.push_back({scene_.texels(n).data() + (first - m.texels.first), 4 * (end - first), 0, 4 * first});
       m.resident_from = finest;
       touched |= bit;
     }
     if ((needs.meta_mask & bit) && !m.meta_resident) {
-      pieces.push_back({host_meta_.data() + m.meta.first, 4 * m.meta.count, 1, 4 * m.meta.first});
+      TVT_CHECK(scene_.meta(n).size() == m.meta.count);
+      pieces.push_back({scene_.meta(n).data(), 4 * m.meta.count, 1, 4 * m.meta.first});
       m.meta_resident = true;
       touched |= bit;
     }
@@ -169,11 +193,7 @@ void MaterialUploader::record_copies(VkCommandBuffer cmd, const MaterialNeeds& n
   stats_.bytes_uploaded += bytes;
   stats_.last_materials += uint32_t(std::popcount(touched));
   stats_.last_bytes += bytes;
-  if (all_resident()) {  // nothing left to upload: the host copies are no longer needed
-    host_texels_ = {};
-    host_meta_ = {};
-    host_weights_ = {};
-  }
+  if (all_resident()) host_weights_ = {};  // nothing left to upload (the texels stay in the scene's cache)
 }
 
 }  // namespace tvt

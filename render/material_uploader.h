@@ -10,7 +10,8 @@
 //
 // The device buffers are allocated whole at construction (sizes and offsets come from the
 // PackedScene, so the shaders' view of them never changes); only the copies are deferred.
-// The host keeps the scene's texels until everything is uploaded.
+// A material's texels are read from disk (or generated) by the first record() that needs it
+// (PackedScene::load()); a load error fails that record() and nothing of it is recorded.
 //
 // Not thread-safe. Staging buffers live for `records_in_flight` record() calls: the commands
 // that many calls ago recorded must have completed before the next call (the frame ring of
@@ -35,6 +36,12 @@ struct MaterialUploadStats {
   uint64_t bytes_uploaded = 0;      // copied so far (each byte once)
   uint32_t last_materials = 0;      // materials that got data from the latest record() / upload_all()
   uint64_t last_bytes = 0;          // bytes the latest record() / upload_all() copied
+  // CPU side (compose/material_source.h): materials read from disk or generated on first use.
+  uint32_t cpu_loaded = 0;          // materials whose texels are in host memory
+  uint32_t last_cpu_loaded = 0;     // materials the latest record() / upload_all() loaded
+  double cpu_load_ms = 0.0;         // wall time of those loads, summed over all calls
+  double last_cpu_load_ms = 0.0;    // ... of the latest record() / upload_all()
+  uint32_t load_failures = 0;       // record() / upload_all() calls that met a load error
 };
 
 class MaterialUploader {
@@ -47,10 +54,11 @@ class MaterialUploader {
   // Records the copies of whatever `needs` names that is not on the GPU yet (from a staging
   // buffer kept for records_in_flight calls) and a barrier that makes them visible to every later
   // command. Bits of materials the scene does not have are ignored. Nothing when all is there.
-  // The data counts as resident from here on: `cmd` must be submitted.
-  void record(VkCommandBuffer cmd, const MaterialNeeds& needs);
+  // The data counts as resident from here on: `cmd` must be submitted. Loads the needed
+  // materials' texels first; on a load error records nothing and returns it (file and field).
+  Status record(VkCommandBuffer cmd, const MaterialNeeds& needs);
   // Uploads everything still missing and waits for it (for passes that compose per pixel).
-  void upload_all();
+  Status upload_all();
   // Records a fill of every device buffer with `word` (tests: data read before its upload
   // then shows up as this pattern instead of whatever the allocation held).
   void fill(VkCommandBuffer cmd, uint32_t word);
@@ -85,7 +93,11 @@ class MaterialUploader {
 
   vk::Context* context_ = nullptr;
   std::vector<Material> materials_;
-  std::vector<uint32_t> host_texels_, host_meta_;
+  // Loads the materials of `mask` on the host, with the CPU counters.
+  Status load(uint32_t mask);
+
+  PackedScene scene_;  // shares the scene's per-material cache: the host texels
+  size_t texel_words_ = 0, meta_words_ = 0;
   std::vector<float> host_weights_;
   size_t layer_floats_ = 0;
   std::vector<bool> layer_resident_;

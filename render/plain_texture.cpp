@@ -79,8 +79,10 @@ Result<std::unique_ptr<PlainTexture>> PlainTexture::create(vk::Context& context,
     jobs.clear();
     for (uint32_t i = first; i < total && jobs.size() < options.batch_pages; ++i)
       jobs.push_back(PageJob{PageId{t->vt_mip_, i % pages_per_side, i / pages_per_side}, uint32_t(jobs.size())});
+    Status recorded = Ok{};
     context.run_commands([&](VkCommandBuffer cmd) {
-      c.record(cmd, jobs);
+      recorded = c.record(cmd, jobs);
+      if (!recorded) return;
       vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT,
                                   VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_READ_BIT);
       vk::Context::transition(cmd, c.output(), VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
@@ -97,6 +99,7 @@ Result<std::unique_ptr<PlainTexture>> PlainTexture::create(vk::Context& context,
                      VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, uint32_t(regions.size()), regions.data());
       vk::Context::transition(cmd, c.output(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL);
     });
+    if (!recorded) return recorded.error();
     t->pages_ += uint32_t(jobs.size());
   }
 

@@ -1,6 +1,8 @@
 // Blocking VT frame driver (see vt_frame_driver.h).
 #include "render/vt_frame_driver.h"
 
+#include <cstdio>
+
 #include <algorithm>
 #include <vector>
 
@@ -37,7 +39,9 @@ VtFrameStats VtFrameDriver::frame(const Camera& camera) {
   const uint32_t cy = uint32_t(std::clamp(camera.position_m.y / mpt, 0.0, vt_max));
   vt_->begin_frame(frame_ + 1, cx, cy, feedback);
   context_->run_commands([&](VkCommandBuffer cmd) {
-    vt_->record(cmd);
+    const Status recorded = vt_->record(cmd);
+    if (!recorded) std::fprintf(stderr, "%s\n", recorded.error().message.c_str());
+    TVT_CHECK(recorded.ok());  // tests and benchmarks: scenes whose materials load
     writer_->record(cmd, camera);
   });
   TVT_CHECK(compactor_->submit(writer_->feedback_buffer(), frame_));  // the ring slot was read: free

@@ -189,7 +189,7 @@ void VtSystem::begin_frame(uint64_t frame, uint32_t camera_x, uint32_t camera_y,
   info_.debug_view = debug_view_;
 }
 
-void VtSystem::record(VkCommandBuffer cmd) {
+Status VtSystem::record(VkCommandBuffer cmd) {
   // Earlier frames (possibly still in flight) sample the cache, entries and info that this
   // frame rewrites: their reads finish first (WAR, an execution dependency suffices).
   vkCmdPipelineBarrier(cmd,
@@ -198,8 +198,15 @@ void VtSystem::record(VkCommandBuffer cmd) {
                        VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 0, nullptr, 0, nullptr,
                        0, nullptr);
   vkCmdUpdateBuffer(cmd, info_buffer_.handle(), 0, sizeof(info_), &info_);
-  composer_->record(cmd, jobs_);
+  Status composed = composer_->record(cmd, jobs_);
   stats_.materials = composer_->upload_stats();
+  if (!composed) {
+    // Nothing was recorded for these pages: they must not become resident.
+    for (const PageJob& j : jobs_) residency_.failed(j.page);
+    stats_.compose_failed = uint32_t(jobs_.size());
+    stats_.composed = 0;
+    jobs_.clear();
+  }
   if (stored_) {
     stored_->record(cmd, composer_->output());
     stats_.stored = stored_->stats();
@@ -229,6 +236,7 @@ void VtSystem::record(VkCommandBuffer cmd) {
       VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT,
       VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
       VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_TRANSFER_READ_BIT);
+  return composed;
 }
 
 void VtSystem::end_frame() {

@@ -68,6 +68,7 @@ struct VtFrameStats {
   uint32_t composed = 0;               // pages composed this frame (incl. fallbacks)
   uint32_t fallback_composed = 0;      // ... of which instead of a bad stored page (hybrid)
   uint32_t missing = 0;                // requests the store could not serve (stored source)
+  uint32_t compose_failed = 0;         // pages not composed because a material failed to load
   StoredFrameStats stored;             // loader activity (stored and hybrid sources)
   MaterialUploadStats materials;       // lazy material upload (what this frame's pages needed first)
   uint32_t table_updates = 0;          // entries scattered this frame
@@ -81,7 +82,11 @@ class VtSystem {
   ~VtSystem();
 
   void begin_frame(uint64_t frame, uint32_t camera_x, uint32_t camera_y, std::span<const PageFeedback> feedback);
-  void record(VkCommandBuffer cmd);
+  // Always records a complete frame. A material load error (first use of a material whose
+  // file went missing or bad) fails this frame's compositions: their pages are marked failed
+  // in the residency (their ancestors stand in), and the error (scene file, field, image file)
+  // is returned so the caller can stop.
+  Status record(VkCommandBuffer cmd);
   void end_frame();
 
   const VtFrameStats& stats() const { return stats_; }

@@ -55,11 +55,11 @@ class GpuCompose : public GpuTest {
     ASSERT_TRUE(packed.ok()) << packed.error().message;
     auto composer = GpuComposer::create(ctx(), packed.value(), 8);
     ASSERT_TRUE(composer.ok()) << composer.error().message;
-    const auto gpu_pages = composer.value()->compose_pages(pages);
+    const auto gpu_pages = composer.value()->compose_pages(pages).value();
     ASSERT_EQ(gpu_pages.size(), pages.size());
     Agreement total;
     for (size_t i = 0; i < pages.size(); ++i) {
-      const auto cpu = compose_page_reference(packed.value(), pages[i]);
+      const auto cpu = compose_page_reference(packed.value(), pages[i]).value();
       const Agreement a = compare(cpu, gpu_pages[i]);
       total.channels += a.channels;
       total.within_one += a.within_one;
@@ -104,8 +104,8 @@ TEST_F(GpuCompose, PagesAreDeterministicAndBordersMatchNeighbours) {
   auto composer = GpuComposer::create(ctx(), packed.value(), 4);
   ASSERT_TRUE(composer.ok());
   const std::vector<PageId> pages = {{0, 100, 200}, {0, 101, 200}, {0, 100, 201}};
-  const auto first = composer.value()->compose_pages(pages);
-  const auto again = composer.value()->compose_pages(pages);
+  const auto first = composer.value()->compose_pages(pages).value();
+  const auto again = composer.value()->compose_pages(pages).value();
   EXPECT_EQ(first, again);
   const int P = int(assets.desc.vt.page_texels), B = int(assets.desc.vt.border_texels), S = P + 2 * B;
   for (int y = 0; y < S; ++y)
@@ -130,9 +130,9 @@ TEST_F(GpuCompose, MaterialCullingIsExact) {
     int culled = 0;
     for (const PageId& p : pages) culled += std::popcount(~culler.mask(p) & ((1u << packed->params.material_count) - 1u));
     EXPECT_GT(culled, 0);
-    const auto with = composer.value()->compose_pages(pages);
+    const auto with = composer.value()->compose_pages(pages).value();
     composer.value()->set_culling(false);
-    const auto without = composer.value()->compose_pages(pages);
+    const auto without = composer.value()->compose_pages(pages).value();
     EXPECT_EQ(with, without) << to_string(m);
   }
 }

@@ -168,7 +168,7 @@ TEST_P(GpuCoordVt, DecodedSamplesAreWithinAFractionOfATexelOfTheAnalyticPosition
   }
   for (uint64_t frame = 1; frame <= 8; ++frame) {
     s.begin_frame(frame, place.camera_x, place.camera_y, feedback);
-    ctx().run_commands([&](VkCommandBuffer cmd) { s.record(cmd); });
+    ctx().run_commands([&](VkCommandBuffer cmd) { TVT_CHECK(s.record(cmd).ok()); });
     s.end_frame();
   }
   for (const PageFeedback& f : feedback) ASSERT_TRUE(s.residency().is_resident(f.page)) << to_string(f.page);

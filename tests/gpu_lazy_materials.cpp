@@ -7,13 +7,18 @@
 #include <gtest/gtest.h>
 
 #include <bit>
+#include <filesystem>
 #include <map>
 
 #include "compose/material_culling.h"
 #include "compose/packed_scene.h"
 #include "compose/scene.h"
+#include "render/flythrough.h"
 #include "render/gpu_composer.h"
+#include "compose/reference_compositor.h"
+#include "support/file_scene.h"
 #include "support/gpu_test.h"
+#include "support/temp_dir.h"
 
 using namespace tvt;
 
@@ -113,20 +118,20 @@ TEST_F(GpuLazyMaterials, PagesThatExcludeAMaterialNeverUploadItAndItComesWithThe
   EXPECT_EQ(c.upload_stats().bytes_uploaded, 0u);
   EXPECT_EQ(c.upload_stats().bytes_total, bytes_of(s, everything));
 
-  c.compose_pages(sets.without);
+  c.compose_pages(sets.without).value();
   const MaterialNeeds first = needs_of(s, sets.without);
   ASSERT_FALSE(first.mask & (1u << k));
   EXPECT_EQ(c.upload_stats().resident_mask, first.mask);
   EXPECT_EQ(c.upload_stats().resident, uint32_t(std::popcount(first.mask)));
   EXPECT_EQ(c.upload_stats().bytes_uploaded, bytes_of(s, first));
   EXPECT_EQ(c.upload_stats().last_bytes, bytes_of(s, first));
-  c.compose_pages(sets.without);  // again: nothing new
+  c.compose_pages(sets.without).value();  // again: nothing new
   EXPECT_EQ(c.upload_stats().last_materials, 0u);
   EXPECT_EQ(c.upload_stats().bytes_uploaded, bytes_of(s, first));
 
   // One batch mixing pages with and without k: k, its meta-texture included, arrives first.
   const std::vector<PageId> mixed = {sets.without[0], sets.with[0]};
-  c.compose_pages(mixed);
+  c.compose_pages(mixed).value();
   const MaterialNeeds second = needs_of(s, concat(sets.without, mixed));
   ASSERT_TRUE(second.meta_mask & (1u << k));
   EXPECT_EQ(c.upload_stats().resident_mask, second.mask);
@@ -151,7 +156,7 @@ TEST_F(GpuLazyMaterials, TheTopPageUploadsOnlyCoarseLevelsAndNoMetaTexture) {
   GpuComposer& c = *created.value();
   const uint32_t top = assets.desc.vt.mip_count() - 1;
   const std::vector<PageId> pages = {{top, 0, 0}};
-  c.compose_pages(pages);
+  c.compose_pages(pages).value();
   const MaterialNeeds needs = needs_of(s, pages);
   const uint32_t all = (1u << s.params.material_count) - 1u;
   EXPECT_EQ(needs.mask, all) << "the top page covers the terrain: every material is in it";
@@ -173,7 +178,7 @@ TEST_F(GpuLazyMaterials, WithoutCullingEveryMaterialComesWithTheFirstBatch) {
   GpuComposer& c = *created.value();
   c.set_culling(false);
   const PageId page[] = {{3, 1, 1}};
-  c.compose_pages(page);
+  c.compose_pages(page).value();
   const MaterialCuller culler(packed.value());
   EXPECT_EQ(c.upload_stats().resident, uint32_t(packed->params.material_count));
   EXPECT_EQ(c.upload_stats().bytes_uploaded, bytes_of(packed.value(), culler.needs(page[0], ~0u)));
@@ -214,15 +219,75 @@ TEST_F(GpuLazyMaterials, ComposedPagesAreByteIdenticalToTheEagerUploadForEveryMe
     std::vector<PageId> order;
     std::vector<std::vector<uint8_t>> lazy_pages;
     for (const auto& call : calls) {
-      for (auto& page : lazy.value()->compose_pages(call)) lazy_pages.push_back(std::move(page));
+      auto composed = lazy.value()->compose_pages(call);
+      ASSERT_TRUE(composed.ok()) << composed.error().message;
+      for (auto& page : composed.value()) lazy_pages.push_back(std::move(page));
       order = concat(order, call);
       if (order.size() <= 3) {  // before the pages with it, the feature material is incomplete
         EXPECT_FALSE(lazy.value()->upload_stats().complete_mask & (1u << sets.material)) << to_string(method);
       }
     }
-    const auto eager_pages = eager.value()->compose_pages(order);
+    const auto eager_pages = eager.value()->compose_pages(order).value();
     ASSERT_EQ(lazy_pages.size(), order.size());
     for (size_t i = 0; i < order.size(); ++i)
       EXPECT_EQ(lazy_pages[i], eager_pages[i]) << to_string(method) << " " << to_string(order[i]);
   }
+}
+
+// CPU side of the lazy path (compose/material_source.h): a material file deleted after the
+// scene loaded fails the first GPU batch that needs it, naming the file and the field; batches
+// of other pages compose; the uploader counts what was read from disk.
+TEST_F(GpuLazyMaterials, AMaterialFileBrokenAfterLoadFailsOnlyTheBatchesThatNeedIt) {
+  const auto dir = test::fresh_test_dir("tvt_gpu_lazy_files");
+  std::string scene;
+  const SceneAssets assets = test::load_split_scene(dir, &scene);
+  std::filesystem::remove(dir / "c.png");
+  auto packed = pack_scene(assets, {});
+  ASSERT_TRUE(packed.ok());
+  {
+    auto created = GpuComposer::create(ctx(), packed.value(), 2, lazy_poisoned());
+    ASSERT_TRUE(created.ok());
+    GpuComposer& c = *created.value();
+    EXPECT_EQ(c.upload_stats().cpu_loaded, 0u);
+    const PageId left{0, 0, 0}, right{0, 15, 0};
+    auto ok = c.compose_pages(std::vector<PageId>{left});
+    ASSERT_TRUE(ok.ok()) << ok.error().message;
+    EXPECT_EQ(c.upload_stats().cpu_loaded, 2u);
+    EXPECT_EQ(c.upload_stats().last_cpu_loaded, 2u);
+    auto bad = c.compose_pages(std::vector<PageId>{right});
+    ASSERT_FALSE(bad.ok());
+    EXPECT_NE(bad.error().message.find(scene + ": /materials/2/albedo/image: " + (dir / "c.png").string()),
+              std::string::npos)
+        << bad.error().message;
+    EXPECT_EQ(c.upload_stats().load_failures, 1u);
+    EXPECT_FALSE(assets.materials->loaded(2));
+    EXPECT_TRUE(c.compose_pages(std::vector<PageId>{PageId{0, 2, 5}}).ok());
+  }
+  std::filesystem::remove_all(dir);
+}
+
+// The render loop: frame 0 composes the top page, which reads every material; a material file
+// deleted after the scene loaded stops the flythrough with the file and the field, before the
+// frame is reported (nothing is written), and no page of that batch becomes resident.
+TEST_F(GpuLazyMaterials, AFlythroughStopsWithTheFileAndFieldWhenAMaterialCannotBeLoaded) {
+  const auto dir = test::fresh_test_dir("tvt_gpu_lazy_fly");
+  std::string scene;
+  const SceneAssets assets = test::load_split_scene(dir, &scene);
+  std::filesystem::remove(dir / "c.png");
+  FlythroughOptions o;
+  o.frames = 4;
+  o.width = 64;
+  o.height = 64;
+  o.vt.cache_slots = 64;
+  uint32_t reported = 0;
+  auto s = run_flythrough(ctx(), assets, o, [&](const FlythroughFrame&, const FlythroughViews&) {
+    ++reported;
+    return true;
+  });
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.error().message.find(scene + ": /materials/2/albedo/image: " + (dir / "c.png").string()),
+            std::string::npos)
+      << s.error().message;
+  EXPECT_EQ(reported, 0u);
+  std::filesystem::remove_all(dir);
 }

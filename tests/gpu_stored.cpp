@@ -60,7 +60,7 @@ std::string bake(vk::Context& g, const SceneAssets& assets, Method method, const
   bo.threads = 2;
   auto s = bake_store(path, desc_for(assets, method), plan,
                       [&](std::span<const PageId> pages, std::vector<std::vector<uint8_t>>& out) -> Status {
-                        out = composer.value()->compose_pages(pages);
+                        out = composer.value()->compose_pages(pages).value();
                         return Ok{};
                       },
                       bo);
@@ -153,7 +153,7 @@ TEST_F(GpuStored, BakedPagesReadBackByteIdenticalToFreshlyComposed) {
   ASSERT_TRUE(packed.ok());
   auto composer = GpuComposer::create(ctx(), packed.value(), 8);  // another batch size: same bytes
   ASSERT_TRUE(composer.ok());
-  const auto fresh = composer.value()->compose_pages(plan.value());
+  const auto fresh = composer.value()->compose_pages(plan.value()).value();
   auto decoder = store.value()->make_decoder();
   std::vector<uint8_t> page(store.value()->page_bytes());
   for (size_t i = 0; i < plan->size(); ++i) {

@@ -99,7 +99,7 @@ TEST_F(TerrainSamplingTest, PlainTextureLevelZeroIsTheComposedPagesAndTheChainIs
   auto composer = GpuComposer::create(ctx(), packed.value(), 4);
   ASSERT_TRUE(composer.ok());
   const std::vector<PageId> pages = {{7, 0, 0}, {7, 3, 1}, {7, 2, 3}};
-  const auto composed = composer.value()->compose_pages(pages);
+  const auto composed = composer.value()->compose_pages(pages).value();
   const uint32_t P = 128, B = 4, S = P + 2 * B, size = 512;
   for (size_t i = 0; i < pages.size(); ++i)
     for (uint32_t y = 0; y < P; ++y)

@@ -81,7 +81,7 @@ class Fbpb : public ::testing::Test {
  protected:
   SceneAssets make(float p, double cf = 1.0, uint8_t variation = 255) {
     auto a = test::make_synthetic_assets({k_base, {{0, 250, 0, 200}, p, Mode::Fbpb}});
-    a.materials[1].meta = test::square_feature_meta(16, 8, 8, 5, variation);
+    a.materials->edit(1).meta = test::square_feature_meta(16, 8, 8, 5, variation);
     a.desc.materials[1].has_fbpb = true;
     a.desc.materials[1].fbpb.cf = cf;
     return a;
@@ -152,7 +152,7 @@ TEST_F(Fbpb, PrecedenceKeepsLowerVisibleFeatures) {
   for (size_t t = 0; t < blue.texels.size(); t += 4) blue.texels[t + 2] = 240, blue.texels[t + 3] = 255;
   MaterialAssets m;
   m.albedo = build_mip_chain(blue);
-  a.materials.push_back(std::move(m));
+  a.materials->push_back(std::move(m));
   a.weights.layers = 3;
   a.weights.data.resize(48, 0.f);
   test::set_weight(a, 2, 1.f);
@@ -252,7 +252,7 @@ TEST(Extremes, NoNaNAnywhere) {
     for (double e : {1e-3, 1.0, 1e3}) {
       for (float p : {0.f, std::ldexp(1.f, -24), 0.5f, 1.f}) {
         auto a = test::make_synthetic_assets({k_base, {{10, 20, 30, 40}, p, Mode::FbpbDpt}}, 24);
-        a.materials[1].meta = test::square_feature_meta(16, 0, 0, 7, 100);
+        a.materials->edit(1).meta = test::square_feature_meta(16, 0, 0, 7, 100);
         a.desc.materials[1].has_fbpb = true;
         a.desc.materials[1].period_texels = 1.0;  // tiling period of one texel
         a.desc.materials[1].dpt.layers = {{patch, e, e, e, e}, {patch * 3, e, e, e, 1e6}};
@@ -283,16 +283,16 @@ TEST(Extremes, NonFiniteWeightsReadAsZero) {
 
 TEST(Pages, DeterministicAndBordersMatchNeighbours) {
   auto a = test::make_synthetic_assets({k_base, {{0, 250, 0, 200}, 0.5f, Mode::FbpbDpt}});
-  a.materials[1].meta = test::square_feature_meta(16, 3, 5, 5, 60);
+  a.materials->edit(1).meta = test::square_feature_meta(16, 3, 5, 5, 60);
   a.desc.materials[1].has_fbpb = true;
   a.desc.materials[1].dpt.layers = {{24, 1, 1, 1, 0.5}, {6, 0.5, 1.5, 1, 0.2}};
   // Non-constant weights so neighbouring pages differ.
   for (size_t i = 0; i < 16; ++i) a.weights.data[16 + i] = float(i % 5) / 4.f;
   const PackedScene s = pack(a);
   const PageId p0{1, 3, 4}, p1{1, 4, 4};
-  const auto first = compose_page_reference(s, p0);
-  EXPECT_EQ(first, compose_page_reference(s, p0));
-  const auto right = compose_page_reference(s, p1);
+  const auto first = compose_page_reference(s, p0).value();
+  EXPECT_EQ(first, compose_page_reference(s, p0).value());
+  const auto right = compose_page_reference(s, p1).value();
   const int P = 16, B = 2, S = P + 2 * B;
   for (int y = 0; y < S; ++y)
     for (int bx = 0; bx < B; ++bx) {
@@ -319,7 +319,7 @@ TEST(Hash, RandomNumbersCoverTheirBoundsExactly) {
 TEST(Extremes, AllFeatureMaskAndFullVisibility) {
   // Every texel is one feature covering the whole tile; at p = 1, r <= p*Cf always holds.
   auto a = test::make_synthetic_assets({k_base, {{0, 250, 0, 200}, 1.f, Mode::Fbpb}});
-  a.materials[1].meta = test::square_feature_meta(16, 8, 8, 16);
+  a.materials->edit(1).meta = test::square_feature_meta(16, 8, 8, 16);
   a.desc.materials[1].has_fbpb = true;
   const PackedScene s = pack(a);
   for (int64_t x : {0, 17, 63, 64, 1000}) EXPECT_NEAR(at(s, x, x * 3 % 1024).g, 250 / 255.0, 1e-9);

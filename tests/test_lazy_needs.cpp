@@ -17,7 +17,7 @@ PackedScene scene(double period, uint32_t supersample = 1, std::optional<Mode> m
   auto a = test::make_synthetic_assets({base, top}, 12);
   a.desc.materials[1].period_texels = period;
   a.desc.materials[1].has_fbpb = true;
-  a.materials[1].meta = test::square_feature_meta(16, 8, 8, 4);
+  a.materials->edit(1).meta = test::square_feature_meta(16, 8, 8, 4);
   ComposeOptions o;
   o.supersample = supersample;
   o.method = method;

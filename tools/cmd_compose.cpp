@@ -88,9 +88,15 @@ int run_compose(const ComposeArgs& a) {
         composer = std::move(c.value());
       }
       composer->set_params(packed->params);
-      texels = composer->compose_pages(pages);
+      auto composed = composer->compose_pages(pages);
+      if (!composed) return fail(cmd, composed.error().message, 1);
+      texels = std::move(composed.value());
     } else {
-      for (const PageId& id : pages) texels.push_back(compose_page_reference(packed.value(), id));
+      for (const PageId& id : pages) {
+        auto page = compose_page_reference(packed.value(), id);
+        if (!page) return fail(cmd, page.error().message, 1);
+        texels.push_back(std::move(page.value()));
+      }
     }
     panels.push_back(assemble_region(vt, region, pages, [&](size_t i) -> const std::vector<uint8_t>& { return texels[i]; }));
     std::printf("  %-10s %7.3f s\n", std::string(to_string(method)).c_str(), seconds_since(tm));

@@ -148,7 +148,12 @@ int run_render(const RenderArgs& a) {
     j["oversubscribed"] = s.residency.oversubscribed;
     j["table_updates"] = s.table_updates;
     j["materials"] = {{"resident", s.materials.resident}, {"uploaded_bytes", s.materials.last_bytes},
-                      {"uploaded_total_bytes", s.materials.bytes_uploaded}, {"all_bytes", s.materials.bytes_total}};
+                      {"uploaded_total_bytes", s.materials.bytes_uploaded}, {"all_bytes", s.materials.bytes_total},
+                      // CPU side: materials read from disk (or generated) on first use
+                      {"cpu_loaded", s.materials.cpu_loaded}, {"cpu_loaded_now", s.materials.last_cpu_loaded},
+                      {"cpu_load_ms", s.materials.last_cpu_load_ms},
+                      {"cpu_load_total_ms", s.materials.cpu_load_ms},
+                      {"load_failures", s.materials.load_failures}};
     if (*source != VtSource::procedural) {
       j["stored"] = {{"requested", s.stored.requested}, {"landed", s.stored.landed}, {"failed", s.stored.failed},
                      {"cancelled", s.stored.cancelled}, {"outstanding", s.stored.outstanding},

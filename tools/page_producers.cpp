@@ -52,14 +52,19 @@ StoreDesc PageProducers::store_desc(int level) const {
 PageSource PageProducers::source() {
   if (!cpu_)
     return [this](std::span<const PageId> pages, std::vector<std::vector<uint8_t>>& out) -> Status {
-      out = composer_->compose_pages(pages);
+      auto composed = composer_->compose_pages(pages);
+      if (!composed) return composed.error();
+      out = std::move(composed.value());
       return Ok{};
     };
   return [this](std::span<const PageId> pages, std::vector<std::vector<uint8_t>>& out) -> Status {
+    // A bake reads every material: load them up front (once; later calls are free), so the
+    // worker threads meet no load error.
+    if (auto s = packed_.load_all(); !s) return s;
     out.assign(pages.size(), {});
     std::atomic<size_t> next{0};
     auto work = [&] {
-      for (size_t i = next++; i < pages.size(); i = next++) out[i] = compose_page_reference(packed_, pages[i]);
+      for (size_t i = next++; i < pages.size(); i = next++) out[i] = std::move(compose_page_reference(packed_, pages[i]).value());
     };
     const unsigned n = std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(), unsigned(pages.size())));
     std::vector<std::jthread> threads;

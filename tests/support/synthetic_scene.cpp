@@ -29,7 +29,7 @@ SceneAssets make_synthetic_assets(const std::vector<SyntheticMaterial>& material
     for (size_t t = 0; t < img.texels.size(); t += 4) std::copy(s.rgba.begin(), s.rgba.end(), img.texels.begin() + long(t));
     MaterialAssets ma;
     ma.albedo = build_mip_chain(img);
-    a.materials.push_back(std::move(ma));
+    a.materials->push_back(std::move(ma));
     if (n > 0) {
       set_weight(a, int(n), s.weight);
       others += s.weight;
