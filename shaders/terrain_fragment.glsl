@@ -164,7 +164,7 @@ vec4 direct_bilinear(i64vec2 ti, vec2 tf, int mip, out vec2 dh) {
 }
 
 // Direct splatting at matched LOD: the composition evaluated at the texel centres of the
-// mip(s) the VT's LOD selects (vt_lod_iso, no bias) and filtered as vt_sample() filters the
+// mip(s) the VT's LOD selects (vt_lod_iso, no bias) and filtered as vt_sample_dh() filters the
 // cache: bilinear within a mip, linear across two. The VT image without the cache.
 vec4 terrain_albedo(TerrainFragment f) {
   const vec2 whole = floor(f.local_texel);

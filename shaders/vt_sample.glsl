@@ -23,22 +23,21 @@ vec2 vt_height_gradient(uint slot, vec2 local) {
   return vec2(mix(a.z - a.w, a.y - a.x, f.y), mix(a.x - a.w, a.y - a.z, f.x));
 }
 
-// vt_sample_mip() with the height gradient in level-0 texels (0 without data or in the debug
-// view).
+// One mip: page lookup, then the bilinear fetch and the height gradient in level-0 texels (0
+// without data or in the debug view).
 vec4 vt_sample_mip_dh(ivec2 ti, vec2 tf, int mip, out vec2 dh) {
   dh = vec2(0.0);
   const VtLookup l = vt_lookup32(ti, tf, mip);
-  if (!l.valid) return vec4(1.0, 0.0, 1.0, 1.0);
+  if (!l.valid) return vec4(1.0, 0.0, 1.0, 1.0);  // no data at all: visible, never NaN
   if (VT.debug_view == TVT_VT_VIEW_DATA_MIP) return tvt_mip_colour(l.data_mip);
   dh = vt_height_gradient(l.slot, l.local) * exp2(-float(l.data_mip));
   return vt_fetch(l.slot, l.local);
 }
 
+// Without the gradient (the driver's compiler drops the unused gather after inlining).
 vec4 vt_sample_mip(ivec2 ti, vec2 tf, int mip) {
-  const VtLookup l = vt_lookup32(ti, tf, mip);
-  if (!l.valid) return vec4(1.0, 0.0, 1.0, 1.0);  // no data at all: visible, never NaN
-  if (VT.debug_view == TVT_VT_VIEW_DATA_MIP) return tvt_mip_colour(l.data_mip);
-  return vt_fetch(l.slot, l.local);
+  vec2 unused;
+  return vt_sample_mip_dh(ti, tf, mip, unused);
 }
 
 vec4 vt_sample_mip(i64vec2 ti, vec2 tf, int mip) { return vt_sample_mip(vt_texel32(ti), tf, mip); }
@@ -53,19 +52,8 @@ void vt_mip_pair(float lod, out int m0, out float t) {
   t = m0 + 1 >= VT.mip_count ? 0.0 : l - float(m0);
 }
 
-// Trilinear: bilinear inside the border of two pages, blended across mips (two lookups).
-vec4 vt_sample(ivec2 ti, vec2 tf, float lod) {
-  int m0;
-  float t;
-  vt_mip_pair(lod, m0, t);
-  const vec4 a = vt_sample_mip(ti, tf, m0);
-  if (t <= 0.0) return a;
-  return mix(a, vt_sample_mip(ti, tf, m0 + 1), t);
-}
-
-vec4 vt_sample(i64vec2 ti, vec2 tf, float lod) { return vt_sample(vt_texel32(ti), tf, lod); }
-
-// vt_sample() with the gradient of the filtered height in level-0 texels (blended like the colour).
+// Trilinear: bilinear inside the border of two pages, blended across mips (two lookups), with
+// the gradient of the filtered height in level-0 texels (blended like the colour).
 vec4 vt_sample_dh(ivec2 ti, vec2 tf, float lod, out vec2 dh) {
   int m0;
   float t;
