@@ -205,7 +205,7 @@ std::shared_ptr<MaterialSource> MaterialSource::in_memory(std::vector<MaterialAs
 }
 
 MaterialAssets& MaterialSource::edit(size_t n) {
-  TVT_CHECK(!desc_ && n < slots_.size() && !slots_[n]->done.load());
+  TVT_CHECK(!desc_ && n < slots_.size() && !slots_[n]->assets.done());
   return slots_[n]->editable;
 }
 
@@ -236,32 +236,24 @@ Result<MaterialAssets> MaterialSource::produce(size_t n) const {
 Result<std::shared_ptr<const MaterialAssets>> MaterialSource::get(size_t n) const {
   TVT_CHECK(n < slots_.size());
   Slot& s = *slots_[n];
-  if (!s.done.load(std::memory_order_acquire)) {
-    std::lock_guard lock(s.mutex);
-    if (!s.done.load(std::memory_order_relaxed)) {
-      if (!desc_) {
-        // In memory: nothing to read; the editable copy becomes the shared one.
-        s.assets = std::make_shared<const MaterialAssets>(std::move(s.editable));
-      } else {
-        const auto t0 = std::chrono::steady_clock::now();
-        auto r = produce(n);
-        const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-        std::lock_guard stats_lock(stats_mutex_);
-        ++stats_.reads;
-        stats_.load_ms += ms;
-        if (r) {
-          s.assets = std::make_shared<const MaterialAssets>(std::move(r.value()));
-          ++stats_.loaded;
-        } else {
-          s.error = r.error();
-          ++stats_.failures;
-        }
-      }
-      s.done.store(true, std::memory_order_release);
+  const auto& once = s.assets.get([&]() -> Result<std::shared_ptr<const MaterialAssets>> {
+    // In memory: nothing to read; the editable copy becomes the shared one.
+    if (!desc_) return std::make_shared<const MaterialAssets>(std::move(s.editable));
+    const auto t0 = std::chrono::steady_clock::now();
+    auto r = produce(n);
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    std::lock_guard stats_lock(stats_mutex_);
+    ++stats_.reads;
+    stats_.load_ms += ms;
+    if (!r) {
+      ++stats_.failures;
+      return r.error();
     }
-  }
-  if (s.error) return *s.error;
-  return s.assets;
+    ++stats_.loaded;
+    return std::make_shared<const MaterialAssets>(std::move(r.value()));
+  });
+  if (once.error()) return *once.error();
+  return once.value();
 }
 
 Status MaterialSource::load_all() const {
@@ -274,11 +266,11 @@ MaterialInfo MaterialSource::info(size_t n) const {
   TVT_CHECK(n < slots_.size());
   const Slot& s = *slots_[n];
   if (desc_) return s.info;
-  if (s.done.load(std::memory_order_acquire)) return info_of(*s.assets);
+  if (s.assets.ok()) return info_of(*s.assets.value());
   return info_of(s.editable);
 }
 
-bool MaterialSource::loaded(size_t n) const { return slots_[n]->done.load(std::memory_order_acquire) && !slots_[n]->error; }
+bool MaterialSource::loaded(size_t n) const { return slots_[n]->assets.ok(); }
 
 MaterialLoadStats MaterialSource::stats() const {
   std::lock_guard lock(stats_mutex_);

@@ -9,7 +9,6 @@
 // remembered: later calls return the same error without reading again. The in-memory editing
 // calls (edit(), push_back()) are for tests and tools building scenes by hand, before any get().
 #pragma once
-#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <mutex>
@@ -19,6 +18,7 @@
 
 #include "compose/image.h"
 #include "compose/metatex.h"
+#include "compose/once_result.h"
 #include "compose/scene.h"
 #include "vt/result.h"
 
@@ -80,11 +80,8 @@ class MaterialSource {
  private:
   struct Slot {
     MaterialInfo info;
-    mutable std::mutex mutex;                       // guards the first load
-    mutable std::atomic<bool> done{false};          // assets or error is set
-    mutable std::shared_ptr<const MaterialAssets> assets;
-    mutable std::optional<Error> error;
-    MaterialAssets editable;                        // in-memory sources before first use
+    mutable OnceResult<std::shared_ptr<const MaterialAssets>> assets;
+    MaterialAssets editable;  // in-memory sources before first use
   };
   MaterialSource() = default;
   Result<MaterialAssets> produce(size_t n) const;

@@ -4,7 +4,6 @@
 #include <atomic>
 #include <bit>
 #include <cmath>
-#include <mutex>
 #include <thread>
 
 #include "shaders/shared/hash.h"
@@ -12,11 +11,11 @@
 namespace tvt {
 
 struct PackedScene::Cache {
-  struct Material {
-    std::mutex mutex;              // guards the first pack
-    std::atomic<bool> done{false}; // words or error set
+  struct Words {
     std::vector<uint32_t> texels, meta;
-    std::optional<Error> error;
+  };
+  struct Material {
+    OnceResult<Words> words;
     bool expects_features = false; // an FBPB mode relies on features the pack took on trust
   };
   std::shared_ptr<const MaterialSource> source;
@@ -25,21 +24,17 @@ struct PackedScene::Cache {
   std::vector<gpu::TvtMaterial> layout;  // offsets and sizes, as packed
 
   // Packs material n once; thread-safe.
-  const Material& get(size_t n) {
+  const OnceResult<Words>& get(size_t n) {
     Material& m = *materials[n];
-    if (m.done.load(std::memory_order_acquire)) return m;
-    std::lock_guard lock(m.mutex);
-    if (m.done.load(std::memory_order_relaxed)) return m;
-    if (auto s = pack(n, m); !s) m.error = s.error();
-    m.done.store(true, std::memory_order_release);
-    return m;
+    return m.words.get([&] { return pack(n, m.expects_features); });
   }
 
-  Status pack(size_t n, Material& out) const {
+  Result<Words> pack(size_t n, bool expects_features) const {
     auto assets = source->get(n);
     if (!assets) return assets.error();
     const MaterialAssets& ma = *assets.value();
     const gpu::TvtMaterial& g = layout[n];
+    Words out;
     if (ma.albedo.resolution != g.resolution || int(ma.albedo.mips.size()) != g.mip_count)
       return make_error(source_path + ": /materials/" + std::to_string(n) +
                         "/albedo: size differs from the one the scene was laid out with");
@@ -47,27 +42,27 @@ struct PackedScene::Cache {
       for (size_t t = 0; t < mip.texels.size(); t += 4)
         out.texels.push_back(uint32_t(mip.texels[t]) | uint32_t(mip.texels[t + 1]) << 8 |
                              uint32_t(mip.texels[t + 2]) << 16 | uint32_t(mip.texels[t + 3]) << 24);
-    if (g.meta_offset == gpu::TVT_NO_META) return Ok{};
-    if (out.expects_features && (!ma.meta || ma.meta->feature_count == 0))
+    if (g.meta_offset == gpu::TVT_NO_META) return out;
+    if (expects_features && (!ma.meta || ma.meta->feature_count == 0))
       return make_error(source_path + ": /materials/" + std::to_string(n) +
                         "/fbpb: the meta-texture has no features, but the scene was laid out expecting some "
                         "(give a meta-texture or mask with features, or use mode blendmap/dpt)");
     if (!ma.meta) {
       out.meta.assign(2 * size_t(g.resolution) * size_t(g.resolution), 0u);
-      return Ok{};
+      return out;
     }
     for (const MetaTexel& t : ma.meta->texels) {
       out.meta.push_back(uint32_t(uint16_t(t.dx)) | uint32_t(uint16_t(t.dy)) << 16);
       out.meta.push_back(uint32_t(t.d) | uint32_t(t.f) << 8 | uint32_t(t.variation) << 16);
     }
-    return Ok{};
+    return out;
   }
 };
 
 Status PackedScene::load(uint32_t mask) const {
   std::vector<size_t> todo;
   for (size_t n = 0; n < cache_->materials.size() && n < 32; ++n)
-    if ((mask & (1u << n)) && !cache_->materials[n]->done.load(std::memory_order_acquire)) todo.push_back(n);
+    if ((mask & (1u << n)) && !cache_->materials[n]->words.done()) todo.push_back(n);
   // Several materials at once (the top page needs them all): one thread each, at most one per
   // core; the cache makes concurrent first uses safe.
   const size_t workers = std::min<size_t>(todo.size(), std::max(1u, std::thread::hardware_concurrency()));
@@ -82,7 +77,7 @@ Status PackedScene::load(uint32_t mask) const {
   }
   for (size_t n = 0; n < cache_->materials.size() && n < 32; ++n)  // first error in material order
     if (mask & (1u << n))
-      if (const auto& m = cache_->get(n); m.error) return *m.error;
+      if (const auto& m = cache_->get(n); m.error()) return *m.error();
   return Ok{};
 }
 
@@ -91,22 +86,21 @@ const MaterialSource& PackedScene::source() const { return *cache_->source; }
 uint32_t PackedScene::loaded_mask() const {
   uint32_t mask = 0;
   for (size_t n = 0; n < cache_->materials.size() && n < 32; ++n) {
-    const auto& m = *cache_->materials[n];
-    if (m.done.load(std::memory_order_acquire) && !m.error) mask |= 1u << n;
+    if (cache_->materials[n]->words.ok()) mask |= 1u << n;
   }
   return mask;
 }
 
 std::span<const uint32_t> PackedScene::texels(size_t n) const {
   const auto& m = cache_->get(n);
-  TVT_CHECK(!m.error && "material load failed: call PackedScene::load() first to get the error");
-  return m.texels;
+  TVT_CHECK(!m.error() && "material load failed: call PackedScene::load() first to get the error");
+  return m.value().texels;
 }
 
 std::span<const uint32_t> PackedScene::meta(size_t n) const {
   const auto& m = cache_->get(n);
-  TVT_CHECK(!m.error && "material load failed: call PackedScene::load() first to get the error");
-  return m.meta;
+  TVT_CHECK(!m.error() && "material load failed: call PackedScene::load() first to get the error");
+  return m.value().meta;
 }
 
 namespace {
