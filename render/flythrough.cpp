@@ -22,6 +22,11 @@ CameraPath flythrough_path(const SceneAssets& assets, const TerrainMesh& mesh) {
                                         [&mesh](double x, double y) { return mesh.height_m_at(x, y); });
 }
 
+Result<CameraPath> flythrough_path(const SceneAssets& assets, const TerrainMesh& mesh, const CameraFile* file) {
+  if (!file) return flythrough_path(assets, mesh);
+  return resolve_camera_path(*file, [&mesh](double x, double y) { return mesh.height_m_at(x, y); });
+}
+
 Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& assets, const FlythroughOptions& o,
                                          const FrameCallback& on_frame) {
   if (o.frames < 1) return make_error("frames: must be at least 1");
@@ -60,7 +65,10 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
   FrameRing& frames = *ring.value();
 
   const TerrainMesh& mesh = t.mesh();
-  const CameraPath path = flythrough_path(assets, mesh);
+  auto resolved = flythrough_path(assets, mesh, o.camera ? &*o.camera : nullptr);
+  if (!resolved) return resolved.error();
+  const CameraPath& path = resolved.value();
+  const Camera lens = o.camera ? o.camera->lens : Camera{};
   const std::vector<double> cuts = path.cut_times();
   const double mpt = mesh.metres_per_texel();
   const double vt_max = double(assets.desc.vt.size_texels() - 1);
@@ -73,7 +81,7 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
     FlythroughFrame fr;
     fr.index = f;
     fr.time_s = path.start_time() + double(f) / o.fps;
-    fr.camera = path.camera_at(std::min(fr.time_s, path.end_time()));
+    fr.camera = path.camera_at(std::min(fr.time_s, path.end_time()), lens);
     for (double c : cuts) fr.cut = fr.cut || (c > fr.time_s - 1.0 / o.fps && c <= fr.time_s && f > 0);
     // Back-pressure only: blocks when the GPU is frames_in_flight frames behind.
     VkCommandBuffer cmd = frames.begin(f);

@@ -6,12 +6,14 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "compose/image.h"
 #include "compose/packed_scene.h"
 #include "render/camera.h"
+#include "render/camera_file.h"
 #include "render/terrain_mesh.h"
 #include "render/terrain_renderer.h"
 #include "render/vk_context.h"
@@ -37,6 +39,9 @@ struct FlythroughOptions {
   // Frames recorded ahead of the GPU (render/frame_ring.h): the loop blocks only when the GPU
   // is this many frames behind. 1: every frame waits for the previous one.
   uint32_t frames_in_flight = 2;
+  // The camera path and lens (render/camera_file.h); none: the scene's built-in flythrough with
+  // the default lens.
+  std::optional<CameraFile> camera;
 };
 
 struct FlythroughFrame {
@@ -87,10 +92,14 @@ struct FlythroughViews {
 // Called after every frame. Returning false stops the loop early.
 using FrameCallback = std::function<bool(const FlythroughFrame& frame, const FlythroughViews& views)>;
 
-// The camera path run_flythrough() follows for this scene (the default flythrough).
+// The scene's built-in flythrough (CameraPath::default_flythrough over the mesh's ground).
 CameraPath flythrough_path(const SceneAssets& assets, const TerrainMesh& mesh);
+// The path run_flythrough() follows: `file` resolved over the mesh's ground, or the built-in
+// flythrough when `file` is null. Errors name the camera file and key.
+Result<CameraPath> flythrough_path(const SceneAssets& assets, const TerrainMesh& mesh, const CameraFile* file);
 
-// Runs the loop on the default flythrough of the scene. Errors name the option at fault.
+// Runs the loop on options.camera (default: the scene's built-in flythrough). Errors name the
+// option at fault.
 Result<FlythroughSummary> run_flythrough(vk::Context& context, const SceneAssets& assets, const FlythroughOptions& options,
                                          const FrameCallback& on_frame);
 

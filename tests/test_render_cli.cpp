@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <vector>
 
 #include "support/temp_dir.h"
 
@@ -67,6 +68,7 @@ TEST_F(RenderCli, BadFlagsExitWithTheirNameAndWriteNothing) {
   const std::string out = path("out");
   const std::string missing = path("missing.tvt");
   std::ofstream(path("bad.json")) << "{ \"vt\": { \"log2_size\": \"sixteen\" } }";
+  std::ofstream(path("bad-camera.json")) << R"({"keys": [{"time_s": 0, "position_m": [1, 2, 3]}]})";
   const std::pair<std::string, std::string> cases[] = {
       {"--method bogus", "--method"},
       {"--frames 0", "--frames"},
@@ -86,6 +88,9 @@ TEST_F(RenderCli, BadFlagsExitWithTheirNameAndWriteNothing) {
       {"--feedback sideways", "--feedback"},
       {"--loader-threads 0", "--loader-threads"},
       {"--scene " + path("bad.json"), "log2_size"},
+      {"--camera " + path("missing-camera.json"), "missing-camera.json: cannot read camera file"},
+      {"--camera " + path("bad-camera.json"), "bad-camera.json: /keys/0/yaw_deg: required field is missing"},
+      {"--save-camera " + path("no/such/folder/cam.json"), "--save-camera"},
   };
   for (const auto& [args, field] : cases) {
     const int code = run("render --quiet --frames 2 --width 64 --height 36 --out " + out + " " + args);
@@ -93,6 +98,66 @@ TEST_F(RenderCli, BadFlagsExitWithTheirNameAndWriteNothing) {
     EXPECT_NE(output_.find(field), std::string::npos) << args << ": " << output_;
     EXPECT_FALSE(fs::exists(out)) << args << " created the output folder";
   }
+}
+
+// stats.jsonl lines of a finished run.
+std::vector<nlohmann::json> stats_lines(const std::string& out) {
+  std::vector<nlohmann::json> lines;
+  std::ifstream in(fs::path(out) / "stats.jsonl");
+  for (std::string line; std::getline(in, line);) lines.push_back(nlohmann::json::parse(line));
+  return lines;
+}
+
+TEST_F(RenderCli, TheSavedBuiltInFlythroughIsTheDocumentedTemplateAndFliesTheSamePath) {
+  const std::string cam = path("flythrough.json");
+  ASSERT_EQ(run("render --save-camera " + cam), 0) << output_;
+  EXPECT_NE(output_.find("built-in flythrough (7 keys, 24.0 s, 1 cut)"), std::string::npos) << output_;
+  std::ifstream saved(cam), doc(std::string(TVT_SOURCE_DIR) + "/docs/default-camera.json");
+  const std::string saved_text(std::istreambuf_iterator<char>(saved), {}), doc_text(std::istreambuf_iterator<char>(doc), {});
+  EXPECT_EQ(saved_text, doc_text) << "docs/default-camera.json is stale: terravt render --save-camera docs/default-camera.json";
+
+  // The same frames from the file as from the built-in path (positions and angles per frame).
+  const std::string common = "render --quiet --frames 3 --every 5 --width 64 --height 36 --cache-slots 64 --method linear ";
+  ASSERT_EQ(run(common + "--out " + path("builtin")), 0) << output_;
+  ASSERT_EQ(run(common + "--camera " + cam + " --out " + path("file")), 0) << output_;
+  EXPECT_NE(output_.find("camera: " + cam + " (7 keys, 24.0 s, 1 cut)"), std::string::npos) << output_;
+  const auto a = stats_lines(path("builtin")), b = stats_lines(path("file"));
+  ASSERT_EQ(a.size(), 3u);
+  ASSERT_EQ(b.size(), 3u);
+  for (size_t f = 0; f < a.size(); ++f) {
+    const auto &ca = a[f]["camera"], &cb = b[f]["camera"];
+    for (int i = 0; i < 3; ++i)
+      EXPECT_NEAR(ca["position_m"][i].get<double>(), cb["position_m"][i].get<double>(), 1e-6) << "frame " << f;
+    EXPECT_NEAR(ca["yaw_deg"].get<double>(), cb["yaw_deg"].get<double>(), 1e-6) << "frame " << f;
+    EXPECT_NEAR(ca["pitch_deg"].get<double>(), cb["pitch_deg"].get<double>(), 1e-6) << "frame " << f;
+  }
+}
+
+TEST_F(RenderCli, ACameraFileIsFlownWholeUnlessFramesAreGiven) {
+  const std::string cam = path("short.json");
+  std::ofstream(cam) << R"({"lens": {"vertical_fov_deg": 45, "far_m": 30000},
+    "keys": [{"time_s": 0, "position_m": [2000, 2000], "above_ground_m": 40, "look_at_m": [3000, 3000, 0]},
+             {"time_s": 0.25, "position_m": [2100, 2050], "above_ground_m": 40, "look_at_m": [3000, 3000, 0]},
+             {"time_s": 0.25, "position_m": [6000, 1000, 1500], "yaw_deg": 120, "pitch_deg": -35, "cut": true},
+             {"time_s": 0.5, "position_m": [6000, 1100, 1500], "yaw_deg": 125, "pitch_deg": -35}]})";
+  const std::string common = "render --quiet --fps 10 --width 64 --height 36 --cache-slots 64 --method linear --camera " + cam;
+  ASSERT_EQ(run(common + " --out " + path("whole")), 0) << output_;
+  const auto whole = stats_lines(path("whole"));
+  ASSERT_EQ(whole.size(), 6u);  // 0.5 s at 10 fps, both ends
+  EXPECT_FALSE(whole[2]["camera"]["cut"].get<bool>());
+  EXPECT_TRUE(whole[3]["camera"]["cut"].get<bool>());  // t = 0.3: the first frame of the second shot
+  EXPECT_NEAR(whole[5]["camera"]["position_m"][1].get<double>(), 1100.0, 1e-9);
+  EXPECT_NEAR(whole[5]["camera"]["yaw_deg"].get<double>(), 125.0, 1e-9);
+  ASSERT_EQ(run(common + " --frames 2 --out " + path("two")), 0) << output_;
+  EXPECT_EQ(stats_lines(path("two")).size(), 2u);
+
+  // A path too long to fly whole at this rate needs --frames; nothing is written.
+  const std::string long_cam = path("long.json");
+  std::ofstream(long_cam) << R"({"keys": [{"time_s": 0, "position_m": [1, 2, 300], "yaw_deg": 0},
+                                          {"time_s": 1e6, "position_m": [1, 2, 300], "yaw_deg": 9}]})";
+  EXPECT_EQ(run("render --quiet --camera " + long_cam + " --out " + path("long")), 2);
+  EXPECT_NE(output_.find("--frames: the camera path is 1000000"), std::string::npos) << output_;
+  EXPECT_FALSE(fs::exists(path("long")));
 }
 
 }  // namespace

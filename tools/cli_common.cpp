@@ -1,6 +1,12 @@
 #include "tools/cli_common.h"
 
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+
 #include "compose/scene.h"
+#include "render/flythrough.h"
 
 namespace tvt::cli {
 
@@ -10,10 +16,57 @@ Result<SceneAssets> load_scene_and_assets(const std::string& path) {
   return load_scene_assets(desc.value());
 }
 
+Result<CameraChoice> choose_camera(const std::string& camera_file, const SceneAssets& assets) {
+  std::optional<CameraFile> file;
+  if (!camera_file.empty()) {
+    auto loaded = load_camera_file(camera_file);
+    if (!loaded) return make_error("--camera: " + loaded.error().message);
+    file = std::move(loaded.value());
+  }
+  // The renderer's heights, on the CPU.
+  const TerrainDesc& terrain = assets.desc.terrain;
+  auto mesh = TerrainMesh::create(assets.heightfield, terrain.extent_m, terrain.height_m, assets.desc.vt);
+  if (!mesh) return mesh.error();
+  auto ground = std::make_unique<TerrainMesh>(std::move(mesh.value()));
+  auto path = flythrough_path(assets, *ground, file ? &*file : nullptr);  // holds a pointer to *ground
+  if (!path) return make_error("--camera: " + path.error().message);
+  const Camera lens = file ? file->lens : Camera{};
+  return CameraChoice{std::move(file), std::move(ground), std::move(path.value()), lens};
+}
+
+std::string CameraChoice::describe() const {
+  const size_t keys = path.keys().size(), cuts = path.cut_times().size();
+  char text[96];
+  std::snprintf(text, sizeof(text), " (%zu key%s, %.1f s, %zu cut%s)", keys, keys == 1 ? "" : "s",
+                path.end_time() - path.start_time(), cuts, cuts == 1 ? "" : "s");
+  return (file ? file->source_path : std::string("built-in flythrough")) + text;
+}
+
 Result<std::unique_ptr<vk::Context>> gpu_context(const std::string& device) {
   vk::ContextOptions options;
   options.device = device;
   return vk::Context::create(options);
+}
+
+Status write_text_file(const std::string& path, const std::string& text) {
+  namespace fs = std::filesystem;
+  const std::string temporary = path + ".tmp-" + std::to_string(::getpid());
+  {
+    std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
+    if (out) out << text;
+    if (!out || !out.flush()) {
+      std::error_code ignored;
+      fs::remove(temporary, ignored);
+      return make_error(path + ": cannot write the file");
+    }
+  }
+  std::error_code ec;
+  fs::rename(temporary, path, ec);
+  if (ec) {
+    fs::remove(temporary, ec);
+    return make_error(path + ": cannot write the file (" + ec.message() + ")");
+  }
+  return Ok{};
 }
 
 int fail(const char* command, const std::string& message, int code) {

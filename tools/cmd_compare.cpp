@@ -32,6 +32,7 @@ struct CompareArgs {
   std::string scene;
   std::string method = "fbpb+dpt2";
   std::string out = "out/compare";
+  std::string camera;  // camera path file (default: the built-in flythrough)
   std::string store;
   std::string gpu_name;
   uint32_t frames = 30;
@@ -143,17 +144,20 @@ int run_compare(const CompareArgs& a) {
   const auto method = method_from_string(a.method);
   if (!method) return fail(cmd, "--method: unknown method '" + a.method + "'", 2);
   if (a.frames < 1 || a.every < 1) return fail(cmd, "--frames/--every: must be at least 1", 2);
-  std::error_code ec;
-  std::filesystem::create_directories(a.out, ec);
-  if (!std::filesystem::is_directory(a.out)) return fail(cmd, "--out: cannot create folder " + a.out, 2);
+  // Inputs first: a bad scene or camera file leaves no output folder behind.
   auto assets = load_scene_and_assets(a.scene);
   if (!assets) return fail(cmd, assets.error().message, 2);
+  auto camera = choose_camera(a.camera, assets.value());
+  if (!camera) return fail(cmd, camera.error().message, 2);
   // Timings compare producers, not first-use loading: read every material up front.
   if (auto loaded = assets->materials->load_all(); !loaded) return fail(cmd, loaded.error().message, 2);
   auto ctx = gpu_context(a.gpu_name);
   if (!ctx) return fail(cmd, ctx.error().message, 1);
   vk::Context& g = *ctx.value();
   const VtConfig& vt = assets->desc.vt;
+  std::error_code ec;
+  std::filesystem::create_directories(a.out, ec);
+  if (!std::filesystem::is_directory(a.out)) return fail(cmd, "--out: cannot create folder " + a.out, 2);
 
   FlythroughOptions fo;
   fo.method = *method;
@@ -165,8 +169,10 @@ int run_compare(const CompareArgs& a) {
   fo.vt.loader.threads = a.loader_threads;
   fo.vt.loader.staging_slots = a.staging;
   fo.deterministic = true;  // procedural and frame-exact stored runs see the same feedback
-  std::printf("terravt compare: %s, V = 2^%u, %s, %u frames at %ux%u, device %s\n", assets->desc.source_path.c_str(),
-              vt.log2_size, a.method.c_str(), a.frames, a.width, a.height, g.device_name().c_str());
+  fo.camera = camera->file;
+  std::printf("terravt compare: %s, V = 2^%u, %s, %u frames at %ux%u, camera %s, device %s\n",
+              assets->desc.source_path.c_str(), vt.log2_size, a.method.c_str(), a.frames, a.width, a.height,
+              camera->describe().c_str(), g.device_name().c_str());
 
   // 1. Procedural.
   auto proc = run(g, assets.value(), fo, a, "procedural");
@@ -261,6 +267,7 @@ int run_compare(const CompareArgs& a) {
   j["method"] = a.method;
   j["vt"] = {{"log2_size", vt.log2_size}, {"page_texels", vt.page_texels}, {"border_texels", vt.border_texels}};
   j["frames"] = a.frames;
+  j["camera"] = camera->describe();
   j["resolution"] = {a.width, a.height};
   j["device"] = g.device_name();
   auto run_json = [&](const RunResult& r, double ms_per_page) {
@@ -329,7 +336,8 @@ const CommandRegistrar k_register{
       app.add_option("--method", a->method, "Transition method")->capture_default_str();
       app.add_option("--out", a->out, "Folder for the store, compare.json and disk_vs_v.svg")->capture_default_str();
       app.add_option("--store", a->store, "Use this store instead of baking the pages the path needs")->check(CLI::ExistingFile);
-      app.add_option("--frames", a->frames, "Frames of the default flythrough")->capture_default_str();
+      app.add_option("--camera", a->camera, "Camera path file (docs/renderer.md; default: the built-in flythrough)");
+      app.add_option("--frames", a->frames, "Frames of the camera path (from its start)")->capture_default_str();
       app.add_option("--width", a->width, "Image width")->capture_default_str();
       app.add_option("--height", a->height, "Image height")->capture_default_str();
       app.add_option("--cache-slots", a->cache_slots, "Physical cache size in pages")->capture_default_str();

@@ -6,12 +6,16 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <numbers>
+#include <optional>
 
 #include "compose/packed_scene.h"
+#include "render/camera_file.h"
 #include "render/flythrough.h"
 #include "streaming/page_store.h"
 #include "tools/cli_common.h"
@@ -22,6 +26,8 @@ namespace {
 
 struct RenderArgs {
   std::string scene;
+  std::string camera;       // camera path file (default: the built-in flythrough)
+  std::string save_camera;  // write the camera path in use here and stop
   std::string out = "out/render";
   std::string method = "fbpb+dpt2";
   std::string gpu_name;
@@ -36,6 +42,7 @@ struct RenderArgs {
   uint32_t frames_in_flight = 2;
   double detail_relief = TerrainLighting{}.detail_relief_m;
   uint32_t frames = 120;
+  bool frames_given = false;  // else: 120 on the built-in flythrough, the whole --camera path
   uint32_t every = 10;
   uint32_t width = 640, height = 360;
   uint32_t cache_slots = 512;
@@ -77,6 +84,27 @@ int run_render(const RenderArgs& a) {
   // Inputs first: a bad scene or a missing device leaves no output folder behind.
   auto assets = load_scene_and_assets(a.scene);
   if (!assets) return fail(cmd, assets.error().message, 2);
+  auto camera = choose_camera(a.camera, assets.value());
+  if (!camera) return fail(cmd, camera.error().message, 2);
+  const double duration_s = camera->path.end_time() - camera->path.start_time();
+  if (!a.save_camera.empty()) {
+    if (auto w = write_text_file(a.save_camera, camera_file_json(camera->path, camera->lens)); !w)
+      return fail(cmd, "--save-camera: " + w.error().message, 1);
+    std::printf("wrote the camera path of %s to %s\n", camera->describe().c_str(), a.save_camera.c_str());
+    return 0;
+  }
+  uint32_t frames = a.frames;
+  if (camera->file && !a.frames_given) {
+    const double whole = std::floor(duration_s * a.fps + 1e-9) + 1.0;
+    if (whole > 100000.0) {
+      char why[160];
+      std::snprintf(why, sizeof(why),
+                    "--frames: the camera path is %.1f s long, more than 100000 frames at --fps %g; give --frames or a lower --fps",
+                    duration_s, a.fps);
+      return fail(cmd, why, 2);
+    }
+    frames = uint32_t(whole);
+  }
   auto ctx = gpu_context(a.gpu_name);
   if (!ctx) return fail(cmd, ctx.error().message, 1);
   vk::Context& g = *ctx.value();
@@ -88,7 +116,8 @@ int run_render(const RenderArgs& a) {
 
   FlythroughOptions fo;
   fo.method = *method;
-  fo.frames = a.frames;
+  fo.frames = frames;
+  fo.camera = camera->file;
   fo.width = a.width;
   fo.height = a.height;
   fo.fps = a.fps;
@@ -107,13 +136,14 @@ int run_render(const RenderArgs& a) {
   fo.lighting.detail_relief_m = a.detail_relief;
   fo.debug_view = a.debug_mips ? 1 : 0;
   std::printf("terravt render: %s, V = 2^%u, %ux%u, %u frames, method %s, source %s, cache %u pages, budget %u/frame, device %s\n",
-              assets->desc.source_path.c_str(), assets->desc.vt.log2_size, a.width, a.height, a.frames,
+              assets->desc.source_path.c_str(), assets->desc.vt.log2_size, a.width, a.height, frames,
               a.method.c_str(), a.source.c_str(), a.cache_slots, a.page_budget, g.device_name().c_str());
+  std::printf("camera: %s\n", camera->describe().c_str());
   uint32_t written = 0;
   std::string write_error;
   auto summary = run_flythrough(g, assets.value(), fo, [&](const FlythroughFrame& fr, const FlythroughViews& views) {
     const VtFrameStats& s = fr.vt;
-    if (fr.index % a.every == 0 || fr.index + 1 == a.frames) {
+    if (fr.index % a.every == 0 || fr.index + 1 == frames) {
       char name[64];
       std::snprintf(name, sizeof(name), "frame_%05u.%s", fr.index, a.format.c_str());
       if (auto w = write_image((std::filesystem::path(a.out) / name).string(), views.frame()); !w) {
@@ -136,6 +166,10 @@ int run_render(const RenderArgs& a) {
     nlohmann::json j;
     j["frame"] = fr.index;
     j["time_s"] = fr.time_s;
+    j["camera"] = {{"position_m", {fr.camera.position_m.x, fr.camera.position_m.y, fr.camera.position_m.z}},
+                   {"yaw_deg", fr.camera.yaw_rad * 180.0 / std::numbers::pi},
+                   {"pitch_deg", fr.camera.pitch_rad * 180.0 / std::numbers::pi},
+                   {"cut", fr.cut}};
     j["feedback_pages"] = fr.feedback_pages;
     j["feedback_frames_late"] = fr.feedback_frames_late;
     j["working_set"] = s.residency.working_set;
@@ -171,7 +205,7 @@ int run_render(const RenderArgs& a) {
                   {"compaction_ms", fr.gpu_stage_ms[2]}};
     stats_file << j.dump() << "\n";
     if (!a.quiet)
-      std::fprintf(stderr, "\r  frame %u/%u  %6.1f ms  resident %u  +%u pages  bias %u%s   ", fr.index + 1, a.frames,
+      std::fprintf(stderr, "\r  frame %u/%u  %6.1f ms  resident %u  +%u pages  bias %u%s   ", fr.index + 1, frames,
                    fr.total_ms, s.residency.resident, s.composed + s.stored.landed, s.residency.mip_bias,
                    s.residency.oversubscribed ? "  OVERSUBSCRIBED" : "");
     return true;
@@ -198,7 +232,11 @@ const CommandRegistrar k_register{
       auto a = std::make_shared<RenderArgs>();
       app.add_option("--scene", a->scene, "Scene JSON file (default: the built-in scene)")->check(CLI::ExistingFile);
       app.add_option("--out", a->out, "Output folder for frames and stats")->capture_default_str();
-      app.add_option("--frames", a->frames, "Frames to render")->capture_default_str();
+      app.add_option("--camera", a->camera, "Camera path file (docs/renderer.md; default: the built-in flythrough)");
+      app.add_option("--save-camera", a->save_camera,
+                     "Write the camera path (the built-in flythrough unless --camera) to this file and stop");
+      const CLI::Option* frames = app.add_option("--frames", a->frames,
+                                                 "Frames to render (default: 120 on the built-in flythrough, the whole --camera path)");
       app.add_option("--every", a->every, "Write every k-th frame")->capture_default_str();
       app.add_option("--width", a->width, "Image width")->capture_default_str();
       app.add_option("--height", a->height, "Image height")->capture_default_str();
@@ -222,7 +260,10 @@ const CommandRegistrar k_register{
       app.add_flag("--quiet", a->quiet, "No progress line");
       app.add_flag("--debug", a->debug, "With each written frame, also write the cache atlas, page table and feedback images");
       app.add_flag("--debug-mips", a->debug_mips, "Colour every texel by the mip of its data (red 0, green 1, yellow 2, blue 3...)");
-      return [a] { return run_render(*a); };
+      return [a, frames] {
+        a->frames_given = frames->count() > 0;
+        return run_render(*a);
+      };
     }};
 
 }  // namespace
