@@ -182,9 +182,6 @@ void VtSystem::begin_frame(uint64_t frame, uint32_t camera_x, uint32_t camera_y,
   }
   stats_.select_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   stats_.composed = uint32_t(jobs_.size());
-  // Evictions happened in next_request(): their unmaps must reach the GPU before anything
-  // samples this frame, together with the recentred windows.
-  pending_updates_ = residency_.take_table_updates();
   info_ = make_vt_info(vt_, residency_.page_table(), float(residency_.mip_bias()));
   info_.debug_view = debug_view_;
 }
@@ -211,6 +208,22 @@ Status VtSystem::record(VkCommandBuffer cmd) {
     stored_->record(cmd, composer_->output());
     stats_.stored = stored_->stats();
   }
+  // The pages written above are in the cache before this frame's terrain pass reads it (the
+  // barrier below), so they are mapped now and sampled this very frame. One scatter carries
+  // them with the evictions' unmaps (from next_request()) and the recentred windows; the page
+  // table keeps one update per entry, so a frame never sends more than every entry.
+  completed_.clear();
+  for (const PageJob& j : jobs_) {
+    residency_.complete(j.page);
+    completed_.push_back(j.page);
+  }
+  jobs_.clear();
+  for (const PageRequest& r : landing_) {
+    residency_.complete(r.page);
+    completed_.push_back(r.page);
+  }
+  landing_.clear();
+  pending_updates_ = residency_.take_table_updates();
   TVT_CHECK(pending_updates_.size() <= update_capacity_);
   // This frame's part of the ring; the frame that used it last has completed (protocol).
   const uint32_t first = uint32_t(records_++ % options_.frames_in_flight) * update_capacity_;
@@ -240,17 +253,6 @@ Status VtSystem::record(VkCommandBuffer cmd) {
 }
 
 void VtSystem::end_frame() {
-  completed_.clear();
-  for (const PageJob& j : jobs_) {
-    residency_.complete(j.page);
-    completed_.push_back(j.page);
-  }
-  jobs_.clear();
-  for (const PageRequest& r : landing_) {
-    residency_.complete(r.page);
-    completed_.push_back(r.page);
-  }
-  landing_.clear();
   if (stored_) stored_->end_frame();
   stats_.residency = residency_.stats();
 }

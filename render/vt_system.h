@@ -16,12 +16,12 @@
 // comes from queue order and barriers, not from waits.
 //   begin_frame(frame, camera texel, feedback)  — CPU: LRU, requests within the budgets
 //   record(cmd)                                 — compose requested pages, land loaded pages,
-//                                                 update info + scatter table updates
+//                                                 mark them resident and scatter the table
+//                                                 updates (evictions, recentring, the new
+//                                                 pages) after their texels: the passes
+//                                                 recorded next sample them this frame
 //   ... the caller records passes that sample (bind info_buffer/entry_buffer/cache/sampler) ...
-//   end_frame()                                 — once `cmd` is submitted: composed and landed
-//                                                 pages count as resident (their table entries
-//                                                 are scattered by the next record(), after
-//                                                 their texels in queue order)
+//   end_frame()                                 — once `cmd` is recorded: frame statistics
 // Stored pages load on the loader's threads across frames: one requested in frame f lands in
 // the first frame after it finished (or, with sync_loads, in frame f itself, which makes a
 // stored run request and show exactly what a procedural run does).
@@ -90,7 +90,7 @@ class VtSystem {
   void end_frame();
 
   const VtFrameStats& stats() const { return stats_; }
-  // Pages that became resident in the last end_frame() (composed or landed), in that order.
+  // Pages that became resident in the last record() (composed or landed), in that order.
   const std::vector<PageId>& last_completed() const { return completed_; }
   // Debug view for sampling passes (TVT_VT_VIEW_*), applied from the next begin_frame().
   void set_debug_view(int view) { debug_view_ = view; }

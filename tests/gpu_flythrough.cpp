@@ -84,3 +84,40 @@ TEST_F(GpuFlythrough, BadOptionsAreErrorsNotCrashes) {
   ASSERT_FALSE(d.ok());
   EXPECT_NE(d.error().message.find("feedback_divisor"), std::string::npos);
 }
+
+// Pages composed in a frame are mapped before that frame's terrain pass, so no frame, not
+// even the first or the one after a cut, shows the "no data" colour (magenta albedo).
+TEST_F(GpuFlythrough, PagesAreSampledInTheFrameThatComposesThem) {
+  FlythroughOptions o;
+  o.frames = 8;
+  o.width = 96;
+  o.height = 54;
+  o.fps = 10.0;
+  o.vt.cache_slots = 64;
+  o.vt.page_budget = 8;
+  o.vt.window_pages = 16;
+  auto camera = parse_camera_file(R"({"keys": [
+      {"time_s": 0, "position_m": [1500, 1500], "above_ground_m": 30, "look_at_m": [4000, 4000, 0]},
+      {"time_s": 0.35, "position_m": [7000, 1200, 900], "yaw_deg": 150, "pitch_deg": -30, "cut": true},
+      {"time_s": 1, "position_m": [7000, 1300, 900], "yaw_deg": 160, "pitch_deg": -30}]})",
+                                  "test-camera.json");
+  ASSERT_TRUE(camera.ok()) << camera.error().message;
+  o.camera = camera.value();
+  auto s = run_flythrough(ctx(), assets16(), o, [&](const FlythroughFrame& f, const FlythroughViews& views) {
+    if (f.index == 0) {
+      EXPECT_GT(f.vt.composed, 0u);
+      EXPECT_EQ(f.completed.size(), f.vt.composed);  // resident the frame they were composed
+      EXPECT_GT(f.vt.table_updates, 0u);
+    }
+    const ImageRGBA8 img = views.frame();
+    uint32_t no_data = 0;
+    for (size_t i = 0; i < img.texels.size(); i += 4) {
+      const int r = img.texels[i], g = img.texels[i + 1], b = img.texels[i + 2];
+      no_data += r > 2 * g + 40 && b > 2 * g + 40;
+    }
+    EXPECT_EQ(no_data, 0u) << "frame " << f.index << (f.cut ? " (cut)" : "");
+    return true;
+  });
+  ASSERT_TRUE(s.ok()) << s.error().message;
+  EXPECT_EQ(s->frames, 8u);
+}
