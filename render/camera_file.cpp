@@ -134,10 +134,13 @@ Result<CameraPath> resolve_camera_path(const CameraFile& file, const GroundFn& g
                           " m, beyond the 1e9 m limit of coordinates");
     }
     if (s.look_at_m) {
-      const glm::dvec3 d = *s.look_at_m - k.position_m;
+      // Aim from where the camera will be: sample() lifts it to ground + clearance.
+      glm::dvec3 from = k.position_m;
+      from.z = std::max(from.z, ground(from.x, from.y) + file.clearance_m);
+      const glm::dvec3 d = *s.look_at_m - from;
       const double horizontal = std::hypot(d.x, d.y);
       if (horizontal == 0.0 && d.z == 0.0)
-        return make_error(key_at + "/look_at_m: must differ from the camera position (its height above the ground puts it there)");
+        return make_error(key_at + "/look_at_m: must differ from the camera position (where its height and the clearance put it)");
       // Straight up or down: the heading is that of the previous key (any heading is right).
       k.yaw_rad = horizontal > 0.0 ? std::atan2(d.y, d.x) : (keys.empty() ? 0.0 : keys.back().yaw_rad);
       k.pitch_rad = std::atan2(d.z, horizontal);

@@ -135,9 +135,10 @@ void VtSystem::collect_loads() {
 }
 
 void VtSystem::begin_frame(uint64_t frame, uint32_t camera_x, uint32_t camera_y, std::span<const PageFeedback> feedback) {
+  // record() consumed the previous frame's jobs and landed pages; skipping it would leave them
+  // in flight for ever, their slots lost.
+  TVT_CHECK(jobs_.empty() && landing_.empty() && "VtSystem: record() must follow every begin_frame()");
   stats_ = VtFrameStats{};
-  jobs_.clear();
-  landing_.clear();
   if (stored_) {
     stored_->begin_frame();
     collect_loads();

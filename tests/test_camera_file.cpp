@@ -179,6 +179,14 @@ TEST(CameraFile, EveryBadFieldNamesFileAndPointer) {
   }
 }
 
+TEST(CameraFile, ALookAtKeyAimsFromWhereTheClearanceLiftsTheCamera) {
+  const CameraFile f = parse_ok(R"({"clearance_m": 2, "keys": [
+      {"time_s": 0, "position_m": [0, 0], "above_ground_m": 0, "look_at_m": [10, 0, 100.1]}]})");
+  const CameraPath p = resolve_ok(f);  // camera at ground(0, 0) + 2 = 102; target 1.9 m below
+  EXPECT_NEAR(p.keys()[0].pitch_rad, std::atan2(100.1 - 102.0, 10.0), 1e-12);
+  EXPECT_NEAR(p.sample(0).position_m.z, 102.0, 1e-12);
+}
+
 TEST(CameraFile, ALookAtPointOnTheResolvedPositionIsAnErrorNamingTheKey) {
   const CameraFile f = parse_ok(R"({"keys": [
       {"time_s": 0, "position_m": [0, 0, 500], "yaw_deg": 0},

@@ -133,6 +133,21 @@ TEST_F(RenderCli, TheSavedBuiltInFlythroughIsTheDocumentedTemplateAndFliesTheSam
   }
 }
 
+TEST_F(RenderCli, SaveCameraNeverWritesAFileThatWouldNotLoad) {
+  // The built-in flythrough over a terrain 2e10 m wide: its clearance (1e-4 of the extent) and
+  // positions leave the camera file limits.
+  std::ifstream in(std::string(TVT_SOURCE_DIR) + "/docs/default-scene.json");
+  auto scene = nlohmann::json::parse(in);
+  scene["terrain"]["extent_m"] = 2e10;
+  std::ofstream(path("huge.json")) << scene.dump();
+  const std::string cam = path("huge-camera.json");
+  EXPECT_EQ(run("render --scene " + path("huge.json") + " --save-camera " + cam), 2);
+  EXPECT_NE(output_.find("--save-camera: this path does not fit the camera file limits, nothing written"), std::string::npos)
+      << output_;
+  EXPECT_NE(output_.find("/clearance_m"), std::string::npos) << output_;
+  EXPECT_FALSE(fs::exists(cam));
+}
+
 TEST_F(RenderCli, ACameraFileIsFlownWholeUnlessFramesAreGiven) {
   const std::string cam = path("short.json");
   std::ofstream(cam) << R"({"lens": {"vertical_fov_deg": 45, "far_m": 30000},

@@ -88,8 +88,13 @@ int run_render(const RenderArgs& a) {
   if (!camera) return fail(cmd, camera.error().message, 2);
   const double duration_s = camera->path.end_time() - camera->path.start_time();
   if (!a.save_camera.empty()) {
-    if (auto w = write_text_file(a.save_camera, camera_file_json(camera->path, camera->lens)); !w)
-      return fail(cmd, "--save-camera: " + w.error().message, 1);
+    const std::string text = camera_file_json(camera->path, camera->lens);
+    // A path made for a huge terrain can leave the file format's limits: never write a file
+    // that would not load again.
+    if (auto back = parse_camera_file(text, a.save_camera); !back)
+      return fail(cmd, "--save-camera: this path does not fit the camera file limits, nothing written (" +
+                           back.error().message + ")", 2);
+    if (auto w = write_text_file(a.save_camera, text); !w) return fail(cmd, "--save-camera: " + w.error().message, 1);
     std::printf("wrote the camera path of %s to %s\n", camera->describe().c_str(), a.save_camera.c_str());
     return 0;
   }
