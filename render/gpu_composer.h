@@ -68,9 +68,10 @@ class GpuComposer {
   // Times `repeats` batches of `pages` on the GPU (submit + wait), returns seconds per batch.
   Result<double> time_batch(std::span<const PageId> pages, int repeats);
 
-  // Loads and uploads every material (blocking): call before the buffer accessors below to
-  // get a load error as a Status instead of a fatal check.
-  Status upload_all_materials() { return materials_->upload_all(); }
+  // Loads and uploads every material (blocking, once; later calls return the same result):
+  // call before the buffer accessors below to get a load error as a Status instead of a fatal
+  // check. TerrainRenderer::create() does for its direct-splat pass.
+  Status upload_all_materials() const { return materials_->upload_all(); }
 
   // The scene buffers (compose_sample.glsl's inputs), for passes that compose per pixel: such
   // a pass may read any material, so the material accessors first upload every material that

@@ -50,6 +50,10 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
   if (probe && feedback == FeedbackMode::MainPass)
     return make_error("terrain renderer: vt.probe_output needs feedback None or SeparatePass");
 
+  // A direct-splat pass reads every material: a material that cannot be loaded is this call's
+  // error (naming scene file, field and image), not a fatal check in the buffer accessors.
+  if (options.direct && options.direct->composer)
+    if (auto loaded = options.direct->composer->upload_all_materials(); !loaded) return loaded.error();
   auto mesh = TerrainMesh::create(heightfield, terrain.extent_m, terrain.height_m, vt, options.mesh);
   if (!mesh) return mesh.error();
 

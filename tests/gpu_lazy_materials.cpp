@@ -291,3 +291,26 @@ TEST_F(GpuLazyMaterials, AFlythroughStopsWithTheFileAndFieldWhenAMaterialCannotB
   EXPECT_EQ(reported, 0u);
   std::filesystem::remove_all(dir);
 }
+
+// A direct-splat pass reads every material: one that cannot be loaded fails the renderer's
+// creation with the file and the field (the buffer accessors would otherwise stop the process).
+TEST_F(GpuLazyMaterials, ADirectSplatRendererReportsAMaterialThatCannotBeLoaded) {
+  const auto dir = test::fresh_test_dir("tvt_gpu_lazy_direct");
+  std::string scene;
+  const SceneAssets assets = test::load_split_scene(dir, &scene);
+  std::filesystem::remove(dir / "c.png");
+  auto packed = pack_scene(assets, {});
+  ASSERT_TRUE(packed.ok());
+  auto composer = GpuComposer::create(ctx(), packed.value(), 1, lazy_poisoned());
+  ASSERT_TRUE(composer.ok());
+  TerrainRendererOptions o;
+  o.width = 64;
+  o.height = 64;
+  o.direct = TerrainDirectInputs{composer.value().get(), false};
+  auto r = TerrainRenderer::create(ctx(), assets, o);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error().message.find(scene + ": /materials/2/albedo/image: " + (dir / "c.png").string()),
+            std::string::npos)
+      << r.error().message;
+  std::filesystem::remove_all(dir);
+}
