@@ -90,8 +90,9 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
     pd.fragment_spirv = shaders::terrain_plain_frag();
   else
     pd.fragment_spirv = options.texel_output ? shaders::terrain_texel_frag() : shaders::terrain_frag();
-  if (options.vt)  // TVT_TERRAIN_SPEC_MAX_ANISOTROPY, TVT_TERRAIN_SPEC_FEEDBACK_DIVISOR
-    pd.fragment_constants = {options.vt->max_anisotropy, options.vt->feedback_divisor};
+  if (options.vt)  // TVT_TERRAIN_SPEC_MAX_ANISOTROPY, _FEEDBACK_DIVISOR, _DETAIL_NORMAL
+    pd.fragment_constants = {options.vt->max_anisotropy, options.vt->feedback_divisor,
+                             options.lighting.detail_relief_m > 0.0 ? 1u : 0u};
   pd.vertex_bindings = {{0, sizeof(TerrainVertex), VK_VERTEX_INPUT_RATE_VERTEX}};
   pd.vertex_attributes = {{gpu::TVT_TERRAIN_ATTR_GRID, 0, VK_FORMAT_R16G16B16A16_UINT, 0}};
   pd.bindings = {

@@ -33,7 +33,8 @@ struct TerrainLighting {
   double fog_density_per_m = -1.0;             // < 0: 1.5 / extent_m; 0: no fog
   std::optional<glm::dvec3> albedo_override;   // set: constant albedo instead of terrain_albedo()
   // Relief of the material height (albedo alpha 0 .. 1) in metres for the detail normal; 0: the
-  // heightfield normal alone. Must be finite and >= 0.
+  // heightfield normal alone (VT passes then skip the height-gradient gathers: cheaper). Must
+  // be finite and >= 0.
   double detail_relief_m = 1.0;
 };
 

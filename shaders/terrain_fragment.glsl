@@ -77,6 +77,7 @@ layout(std140, set = 0, binding = TVT_BIND_TERRAIN_FEEDBACK_PARAMS) uniform Feed
 #include "vt_sample.glsl"
 layout(constant_id = TVT_TERRAIN_SPEC_MAX_ANISOTROPY) const int k_max_anisotropy = 1;
 layout(constant_id = TVT_TERRAIN_SPEC_FEEDBACK_DIVISOR) const uint k_feedback_divisor = 8u;  // = FB.divisor
+layout(constant_id = TVT_TERRAIN_SPEC_DETAIL_NORMAL) const bool k_detail_normal = true;
 
 #ifdef TVT_TERRAIN_VT_PROBE
 // Distance in data-mip texels from the lookup's sample point to the nearest edge of the page
@@ -254,7 +255,13 @@ void main() {
   f.distance_m = length(v_rel_m);
 
   const vec4 albedo = F.albedo_override.a > 0.0 ? F.albedo_override : terrain_albedo(f);
-  const vec3 n = F.albedo_override.a > 0.0 ? f.normal : detail_normal(f.normal, g_height_gradient);
+#ifdef TVT_TERRAIN_VT
+  // Off (a specialization constant), g_height_gradient is dead and the gathers go with it.
+  const bool detail = k_detail_normal && !(F.albedo_override.a > 0.0);
+#else
+  const bool detail = !(F.albedo_override.a > 0.0);
+#endif
+  const vec3 n = detail ? detail_normal(f.normal, g_height_gradient) : f.normal;
   const float lambert = max(dot(n, F.sun.xyz), 0.0);
   const vec3 lit = albedo.rgb * (F.sun_color.rgb * (F.sun.w * lambert) + vec3(F.sun_color.a));
   const float fog = 1.0 - exp(-F.sky.a * f.distance_m);

@@ -50,9 +50,14 @@ double median(std::vector<double> v) {
 }
 
 // The passes of the static comparison, in timing order.
-enum Pass { kPlain, kVt, kVtNoFeedback, kVtSeparate, kVtAniso, kDirect, kUntextured, kPassCount };
+// The *Flat passes have the detail normal off (relief 0): the knob's cost, measured.
+enum Pass {
+  kPlain, kVt, kVtNoFeedback, kVtSeparate, kVtAniso, kDirect, kUntextured,
+  kPlainFlat, kVtFlat, kVtNoFeedbackFlat, kPassCount
+};
 constexpr const char* k_pass_names[kPassCount] = {"plain", "vt", "vt_no_feedback", "vt_separate_feedback",
-                                                  "vt_aniso", "direct", "untextured"};
+                                                  "vt_aniso", "direct", "untextured", "plain_no_detail",
+                                                  "vt_no_detail", "vt_no_feedback_no_detail"};
 
 struct StaticResult {
   std::vector<double> ms[kPassCount];  // per pose: fastest of the rounds
@@ -116,6 +121,15 @@ Result<StaticResult> measure_static(vk::Context& g, const SceneAssets& assets, M
   made.push_back(vt_pass(FeedbackMode::MainPass, a.anisotropy));
   made.push_back(TerrainRenderer::create(g, assets, direct_o));
   made.push_back(TerrainRenderer::create(g, assets, base));
+  TerrainRendererOptions plain_flat = plain_o;
+  plain_flat.lighting.detail_relief_m = 0.0;
+  made.push_back(TerrainRenderer::create(g, assets, plain_flat));
+  for (FeedbackMode mode : {FeedbackMode::MainPass, FeedbackMode::None}) {
+    TerrainRendererOptions o = base;
+    o.lighting.detail_relief_m = 0.0;
+    o.vt = TerrainVtInputs{&v.info_buffer(), &v.entry_buffer(), &v.cache(), v.sampler(), a.feedback_divisor, mode, 1};
+    made.push_back(TerrainRenderer::create(g, assets, o));
+  }
   for (int p = 0; p < kPassCount; ++p) {
     if (!made[size_t(p)]) return made[size_t(p)].error();
     passes[p] = std::move(made[size_t(p)].value());
@@ -304,7 +318,14 @@ int run_bench_frame(const BenchFrameArgs& a) {
   for (size_t i = 0; i < methods.size(); ++i)
     std::printf("%s%s %.2fx", i ? ", " : "", std::string(to_string(methods[i])).c_str(),
                 statics[i].ratio(kVtNoFeedback, kPlain));
-  std::printf(").\n\nFeedback cost per frame (GPU, same poses): main-pass writes vs a separate 1/%u pass, plus compaction:\n",
+  std::printf(").\nDetail normal off (relief 0: no height-gradient gathers):");
+  for (size_t i = 0; i < methods.size(); ++i) {
+    const StaticResult& r = statics[i];
+    std::printf("\n  %-10s plain %.1f  VT %.1f (VT/plain %.2fx, detail costs the VT %+.1f ms)  VT noFB/plain %.2fx",
+                std::string(to_string(methods[i])).c_str(), r.pass(kPlainFlat), r.pass(kVtFlat),
+                r.ratio(kVtFlat, kPlainFlat), r.difference(kVt, kVtFlat), r.ratio(kVtNoFeedbackFlat, kPlainFlat));
+  }
+  std::printf("\n\nFeedback cost per frame (GPU, same poses): main-pass writes vs a separate 1/%u pass, plus compaction:\n",
               a.feedback_divisor);
   for (size_t i = 0; i < methods.size(); ++i) {
     const StaticResult& r = statics[i];
@@ -329,6 +350,9 @@ int run_bench_frame(const BenchFrameArgs& a) {
     e["vt_no_feedback_over_plain"] = statics[i].ratio(kVtNoFeedback, kPlain);
     e["vt_over_direct"] = statics[i].ratio(kVt, kDirect);
     e["aniso_over_vt"] = statics[i].ratio(kVtAniso, kVt);
+    e["no_detail"] = {{"vt_over_plain", statics[i].ratio(kVtFlat, kPlainFlat)},
+                      {"vt_no_feedback_over_plain", statics[i].ratio(kVtNoFeedbackFlat, kPlainFlat)},
+                      {"detail_cost_vt_ms", statics[i].difference(kVt, kVtFlat)}};
     e["feedback_gpu_ms"] = {{"main_pass", statics[i].difference(kVt, kVtNoFeedback)},
                             {"separate_pass", statics[i].difference(kVtSeparate, kVtNoFeedback)},
                             {"compaction", statics[i].compaction_ms}};

@@ -32,6 +32,9 @@ TVT_CONST uint TVT_BIND_TERRAIN_PLAIN = 11u;             // sampler2DArray (laye
 // ... and of the main-pass feedback writer: the divisor N (a constant turns the per-pixel
 // "x mod N" into a multiply and shift; lavapipe has no vector integer division).
 #define TVT_TERRAIN_SPEC_FEEDBACK_DIVISOR 1
+// ... and whether the detail normal is on (relief > 0 at pipeline creation): off, the VT
+// passes drop the height-gradient gathers (one per mip lookup) altogether.
+#define TVT_TERRAIN_SPEC_DETAIL_NORMAL 2
 TVT_CONST uint TVT_TERRAIN_ATTR_GRID = 0u;     // vertex attribute: uvec4 (i, j, skirt, 0), R16G16B16A16_UINT
 TVT_CONST uint TVT_HF_FRAC_BITS = 8u;          // heightfield coordinates in 1/256 heightfield texels
 
