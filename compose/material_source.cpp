@@ -233,24 +233,51 @@ Result<MaterialAssets> MaterialSource::produce(size_t n) const {
   return m;
 }
 
+Result<MaterialAssets> MaterialSource::produce_counted(size_t n) const {
+  const auto t0 = std::chrono::steady_clock::now();
+  auto r = produce(n);
+  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  std::lock_guard stats_lock(stats_mutex_);
+  ++stats_.reads;
+  stats_.load_ms += ms;
+  if (!r) {
+    ++stats_.failures;
+    return r.error();
+  }
+  ++stats_.loaded;
+  return r;
+}
+
 Result<std::shared_ptr<const MaterialAssets>> MaterialSource::get(size_t n) const {
   TVT_CHECK(n < slots_.size());
   Slot& s = *slots_[n];
+  s.assets_wanted.store(true, std::memory_order_release);
   const auto& once = s.assets.get([&]() -> Result<std::shared_ptr<const MaterialAssets>> {
     // In memory: nothing to read; the editable copy becomes the shared one.
     if (!desc_) return std::make_shared<const MaterialAssets>(std::move(s.editable));
-    const auto t0 = std::chrono::steady_clock::now();
-    auto r = produce(n);
-    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    std::lock_guard stats_lock(stats_mutex_);
-    ++stats_.reads;
-    stats_.load_ms += ms;
-    if (!r) {
-      ++stats_.failures;
-      return r.error();
-    }
-    ++stats_.loaded;
+    // Words made already: their images were dropped, so this reads the files again.
+    auto r = produce_counted(n);
+    if (!r) return r.error();
     return std::make_shared<const MaterialAssets>(std::move(r.value()));
+  });
+  if (once.error()) return *once.error();
+  return once.value();
+}
+
+Result<std::shared_ptr<const MaterialWords>> MaterialSource::words(size_t n) const {
+  TVT_CHECK(n < slots_.size());
+  Slot& s = *slots_[n];
+  const auto& once = s.words.get([&]() -> Result<std::shared_ptr<const MaterialWords>> {
+    // Images someone holds (an in-memory source, or an earlier get()) are packed as they are;
+    // otherwise the files are read for this packing alone and their images freed right after.
+    if (!desc_ || s.assets_wanted.load(std::memory_order_acquire)) {
+      auto assets = get(n);
+      if (!assets) return assets.error();
+      return std::make_shared<const MaterialWords>(pack_material(*assets.value()));
+    }
+    auto r = produce_counted(n);
+    if (!r) return r.error();
+    return std::make_shared<const MaterialWords>(pack_material(r.value()));
   });
   if (once.error()) return *once.error();
   return once.value();
@@ -258,7 +285,7 @@ Result<std::shared_ptr<const MaterialAssets>> MaterialSource::get(size_t n) cons
 
 Status MaterialSource::load_all() const {
   for (size_t n = 0; n < slots_.size(); ++n)
-    if (auto r = get(n); !r) return r.error();
+    if (auto r = words(n); !r) return r.error();
   return Ok{};
 }
 
@@ -270,7 +297,30 @@ MaterialInfo MaterialSource::info(size_t n) const {
   return info_of(s.editable);
 }
 
-bool MaterialSource::loaded(size_t n) const { return slots_[n]->assets.ok(); }
+bool MaterialSource::loaded(size_t n) const { return slots_[n]->words.ok() || slots_[n]->assets.ok(); }
+
+MaterialWords pack_material(const MaterialAssets& a) {
+  MaterialWords w;
+  w.resolution = a.albedo.resolution;
+  w.mip_count = int(a.albedo.mips.size());
+  size_t count = 0;
+  for (const ImageRGBA8& mip : a.albedo.mips) count += mip.texels.size() / 4;
+  w.texels.reserve(count);
+  for (const ImageRGBA8& mip : a.albedo.mips)
+    for (size_t t = 0; t < mip.texels.size(); t += 4)
+      w.texels.push_back(uint32_t(mip.texels[t]) | uint32_t(mip.texels[t + 1]) << 8 |
+                         uint32_t(mip.texels[t + 2]) << 16 | uint32_t(mip.texels[t + 3]) << 24);
+  if (a.meta) {
+    w.has_meta = true;
+    w.feature_count = a.meta->feature_count;
+    w.meta.reserve(2 * a.meta->texels.size());
+    for (const MetaTexel& t : a.meta->texels) {
+      w.meta.push_back(uint32_t(uint16_t(t.dx)) | uint32_t(uint16_t(t.dy)) << 16);
+      w.meta.push_back(uint32_t(t.d) | uint32_t(t.f) << 8 | uint32_t(t.variation) << 16);
+    }
+  }
+  return w;
+}
 
 MaterialLoadStats MaterialSource::stats() const {
   std::lock_guard lock(stats_mutex_);

@@ -4,12 +4,14 @@
 // fails there, with the same messages; the texels are read (or generated, for built-in
 // materials) by the first get() of the material. See docs/composition.md, "Lazy material loading".
 //
-// Thread-safety: get(), load_all(), loaded() and stats() may be called from any number of
-// threads; concurrent first calls for one material read its files once. A failed load is
+// Thread-safety: get(), words(), load_all(), loaded() and stats() may be called from any number of
+// threads; concurrent first calls of get() (or of words()) for one material read its files once;
+// words() after get() packs get()'s images, a get() after words() reads the files again. A failed load is
 // remembered: later calls return the same error without reading again. The in-memory editing
 // calls (edit(), push_back()) are for tests and tools building scenes by hand, before any get().
 #pragma once
 #include <cstdint>
+#include <atomic>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -35,6 +37,19 @@ struct MaterialAssets {
   MipChain albedo;                 // RGB albedo, A height / blend map
   std::optional<MetaTexture> meta; // FBPB features, when the material has any
 };
+
+// A material in the flat form the compositors read (PackedScene): the albedo mips as RGBA8
+// words r | g<<8 | b<<16 | a<<24, level 0 first, and the meta-texture as two words per texel,
+// (dx & 0xffff) | dy<<16 and d | f<<8 | v<<16 (empty without one).
+struct MaterialWords {
+  int resolution = 0;
+  int mip_count = 0;
+  std::vector<uint32_t> texels;
+  std::vector<uint32_t> meta;
+  bool has_meta = false;
+  uint32_t feature_count = 0;
+};
+MaterialWords pack_material(const MaterialAssets& assets);
 
 // What is known of a material without reading its texels (the layout of the packed scene).
 struct MaterialInfo {
@@ -68,7 +83,11 @@ class MaterialSource {
 
   // Material n, loaded on the first call. The error names the scene file, the field and the file.
   Result<std::shared_ptr<const MaterialAssets>> get(size_t n) const;
-  // Loads every material (bake, compose panels, benchmarks); the first error.
+  // Material n's words, made once and shared by every packing of the scene (one per method).
+  // A file-backed source keeps only these: the images it read are dropped once packed (unless
+  // get() kept them), so the host holds each material's texels once.
+  Result<std::shared_ptr<const MaterialWords>> words(size_t n) const;
+  // Loads every material's words (bake, compose panels, benchmarks); the first error.
   Status load_all() const;
   bool loaded(size_t n) const;
   MaterialLoadStats stats() const;
@@ -81,10 +100,14 @@ class MaterialSource {
   struct Slot {
     MaterialInfo info;
     mutable OnceResult<std::shared_ptr<const MaterialAssets>> assets;
+    mutable OnceResult<std::shared_ptr<const MaterialWords>> words;
+    mutable std::atomic<bool> assets_wanted{false};  // get() was called: words() packs its images
     MaterialAssets editable;  // in-memory sources before first use
   };
   MaterialSource() = default;
   Result<MaterialAssets> produce(size_t n) const;
+  // produce(n) with the load counters (reads, load time, failures).
+  Result<MaterialAssets> produce_counted(size_t n) const;
 
   std::optional<SceneDesc> desc_;  // empty: in memory
   std::vector<std::unique_ptr<Slot>> slots_;

@@ -11,8 +11,12 @@
 namespace tvt {
 
 struct PackedScene::Cache {
+  // The source's words (shared by every packing of the scene) and, when this layout has a
+  // meta slot for a material without a meta-texture, this packing's zeros.
   struct Words {
-    std::vector<uint32_t> texels, meta;
+    std::shared_ptr<const MaterialWords> shared;
+    std::vector<uint32_t> zero_meta;
+    std::span<const uint32_t> meta() const { return shared->has_meta ? shared->meta : zero_meta; }
   };
   struct Material {
     OnceResult<Words> words;
@@ -30,31 +34,20 @@ struct PackedScene::Cache {
   }
 
   Result<Words> pack(size_t n, bool expects_features) const {
-    auto assets = source->get(n);
-    if (!assets) return assets.error();
-    const MaterialAssets& ma = *assets.value();
+    auto words = source->words(n);
+    if (!words) return words.error();
+    const MaterialWords& w = *words.value();
     const gpu::TvtMaterial& g = layout[n];
-    Words out;
-    if (ma.albedo.resolution != g.resolution || int(ma.albedo.mips.size()) != g.mip_count)
+    if (w.resolution != g.resolution || w.mip_count != g.mip_count)
       return make_error(source_path + ": /materials/" + std::to_string(n) +
                         "/albedo: size differs from the one the scene was laid out with");
-    for (const ImageRGBA8& mip : ma.albedo.mips)
-      for (size_t t = 0; t < mip.texels.size(); t += 4)
-        out.texels.push_back(uint32_t(mip.texels[t]) | uint32_t(mip.texels[t + 1]) << 8 |
-                             uint32_t(mip.texels[t + 2]) << 16 | uint32_t(mip.texels[t + 3]) << 24);
+    Words out{words.value(), {}};
     if (g.meta_offset == gpu::TVT_NO_META) return out;
-    if (expects_features && (!ma.meta || ma.meta->feature_count == 0))
+    if (expects_features && (!w.has_meta || w.feature_count == 0))
       return make_error(source_path + ": /materials/" + std::to_string(n) +
                         "/fbpb: the meta-texture has no features, but the scene was laid out expecting some "
                         "(give a meta-texture or mask with features, or use mode blendmap/dpt)");
-    if (!ma.meta) {
-      out.meta.assign(2 * size_t(g.resolution) * size_t(g.resolution), 0u);
-      return out;
-    }
-    for (const MetaTexel& t : ma.meta->texels) {
-      out.meta.push_back(uint32_t(uint16_t(t.dx)) | uint32_t(uint16_t(t.dy)) << 16);
-      out.meta.push_back(uint32_t(t.d) | uint32_t(t.f) << 8 | uint32_t(t.variation) << 16);
-    }
+    if (!w.has_meta) out.zero_meta.assign(2 * size_t(g.resolution) * size_t(g.resolution), 0u);
     return out;
   }
 };
@@ -94,13 +87,15 @@ uint32_t PackedScene::loaded_mask() const {
 std::span<const uint32_t> PackedScene::texels(size_t n) const {
   const auto& m = cache_->get(n);
   TVT_CHECK(!m.error() && "material load failed: call PackedScene::load() first to get the error");
-  return m.value().texels;
+  return m.value().shared->texels;
 }
 
 std::span<const uint32_t> PackedScene::meta(size_t n) const {
   const auto& m = cache_->get(n);
   TVT_CHECK(!m.error() && "material load failed: call PackedScene::load() first to get the error");
-  return m.value().meta;
+  const PackedScene::Cache::Words& w = m.value();
+  if (cache_->layout[n].meta_offset == gpu::TVT_NO_META) return {};
+  return w.meta();
 }
 
 namespace {

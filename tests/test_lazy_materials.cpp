@@ -135,6 +135,23 @@ TEST_F(LazyMaterials, PagesEqualThoseOfMaterialsLoadedUpFront) {
   }
 }
 
+// The host holds each material's texels once: every packing of the scene (one per method)
+// reads the source's words, and the source keeps no images once it has packed them.
+TEST_F(LazyMaterials, PackingsOfOneSceneShareTheMaterialWordsAndReadEachFileOnce) {
+  const SceneAssets a = load();
+  auto blend = pack_scene(a, options_for(Method::BlendMap));
+  auto fbpb = pack_scene(a, options_for(Method::FbpbDpt));
+  ASSERT_TRUE(blend.ok() && fbpb.ok());
+  ASSERT_TRUE(blend->load_all().ok());
+  ASSERT_TRUE(fbpb->load_all().ok());
+  EXPECT_EQ(a.materials->stats().reads, 3u);
+  for (size_t n = 0; n < 3; ++n) {
+    EXPECT_TRUE(a.materials->loaded(n));
+    EXPECT_EQ(blend->texels(n).data(), fbpb->texels(n).data()) << n;  // one copy
+    EXPECT_EQ(blend->texels(n).data(), a.materials->words(n).value()->texels.data()) << n;
+  }
+}
+
 TEST_F(LazyMaterials, ConcurrentFirstUseLoadsOnce) {
   const SceneAssets a = load();
   auto packed = pack_scene(a, {});
