@@ -237,11 +237,25 @@ TEST_F(GpuLazyMaterials, ComposedPagesAreByteIdenticalToTheEagerUploadForEveryMe
 // CPU side of the lazy path (compose/material_source.h): a material file deleted after the
 // scene loaded fails the first GPU batch that needs it, naming the file and the field; batches
 // of other pages compose; the uploader counts what was read from disk.
-TEST_F(GpuLazyMaterials, AMaterialFileBrokenAfterLoadFailsOnlyTheBatchesThatNeedIt) {
-  const auto dir = test::fresh_test_dir("tvt_gpu_lazy_files");
+// The split scene on disk with c.png (material 2) deleted after the scene loaded; the folder
+// goes with the object.
+struct SceneWithDeletedMaterial {
+  explicit SceneWithDeletedMaterial(const char* name)
+      : dir(test::fresh_test_dir(name)), assets(test::load_split_scene(dir, &scene)) {
+    std::filesystem::remove(dir / "c.png");
+  }
+  ~SceneWithDeletedMaterial() { std::filesystem::remove_all(dir); }
+  // What every use of material 2 reports: scene file, field, image file.
+  std::string error() const { return scene + ": /materials/2/albedo/image: " + (dir / "c.png").string(); }
+
+  std::filesystem::path dir;
   std::string scene;
-  const SceneAssets assets = test::load_split_scene(dir, &scene);
-  std::filesystem::remove(dir / "c.png");
+  SceneAssets assets;
+};
+
+TEST_F(GpuLazyMaterials, AMaterialFileBrokenAfterLoadFailsOnlyTheBatchesThatNeedIt) {
+  const SceneWithDeletedMaterial broken("tvt_gpu_lazy_files");
+  const SceneAssets& assets = broken.assets;
   auto packed = pack_scene(assets, {});
   ASSERT_TRUE(packed.ok());
   {
@@ -256,24 +270,21 @@ TEST_F(GpuLazyMaterials, AMaterialFileBrokenAfterLoadFailsOnlyTheBatchesThatNeed
     EXPECT_EQ(c.upload_stats().last_cpu_loaded, 2u);
     auto bad = c.compose_pages(std::vector<PageId>{right});
     ASSERT_FALSE(bad.ok());
-    EXPECT_NE(bad.error().message.find(scene + ": /materials/2/albedo/image: " + (dir / "c.png").string()),
+    EXPECT_NE(bad.error().message.find(broken.error()),
               std::string::npos)
         << bad.error().message;
     EXPECT_EQ(c.upload_stats().load_failures, 1u);
     EXPECT_FALSE(assets.materials->loaded(2));
     EXPECT_TRUE(c.compose_pages(std::vector<PageId>{PageId{0, 2, 5}}).ok());
   }
-  std::filesystem::remove_all(dir);
 }
 
 // The render loop: frame 0 composes the top page, which reads every material; a material file
 // deleted after the scene loaded stops the flythrough with the file and the field, before the
 // frame is reported (nothing is written), and no page of that batch becomes resident.
 TEST_F(GpuLazyMaterials, AFlythroughStopsWithTheFileAndFieldWhenAMaterialCannotBeLoaded) {
-  const auto dir = test::fresh_test_dir("tvt_gpu_lazy_fly");
-  std::string scene;
-  const SceneAssets assets = test::load_split_scene(dir, &scene);
-  std::filesystem::remove(dir / "c.png");
+  const SceneWithDeletedMaterial broken("tvt_gpu_lazy_fly");
+  const SceneAssets& assets = broken.assets;
   FlythroughOptions o;
   o.frames = 4;
   o.width = 64;
@@ -285,20 +296,17 @@ TEST_F(GpuLazyMaterials, AFlythroughStopsWithTheFileAndFieldWhenAMaterialCannotB
     return true;
   });
   ASSERT_FALSE(s.ok());
-  EXPECT_NE(s.error().message.find(scene + ": /materials/2/albedo/image: " + (dir / "c.png").string()),
+  EXPECT_NE(s.error().message.find(broken.error()),
             std::string::npos)
       << s.error().message;
   EXPECT_EQ(reported, 0u);
-  std::filesystem::remove_all(dir);
 }
 
 // A direct-splat pass reads every material: one that cannot be loaded fails the renderer's
 // creation with the file and the field (the buffer accessors would otherwise stop the process).
 TEST_F(GpuLazyMaterials, ADirectSplatRendererReportsAMaterialThatCannotBeLoaded) {
-  const auto dir = test::fresh_test_dir("tvt_gpu_lazy_direct");
-  std::string scene;
-  const SceneAssets assets = test::load_split_scene(dir, &scene);
-  std::filesystem::remove(dir / "c.png");
+  const SceneWithDeletedMaterial broken("tvt_gpu_lazy_direct");
+  const SceneAssets& assets = broken.assets;
   auto packed = pack_scene(assets, {});
   ASSERT_TRUE(packed.ok());
   auto composer = GpuComposer::create(ctx(), packed.value(), 1, lazy_poisoned());
@@ -309,8 +317,7 @@ TEST_F(GpuLazyMaterials, ADirectSplatRendererReportsAMaterialThatCannotBeLoaded)
   o.direct = TerrainDirectInputs{composer.value().get(), false};
   auto r = TerrainRenderer::create(ctx(), assets, o);
   ASSERT_FALSE(r.ok());
-  EXPECT_NE(r.error().message.find(scene + ": /materials/2/albedo/image: " + (dir / "c.png").string()),
+  EXPECT_NE(r.error().message.find(broken.error()),
             std::string::npos)
       << r.error().message;
-  std::filesystem::remove_all(dir);
 }
