@@ -64,6 +64,19 @@ Status rename_durable(const std::string& from, const std::string& to) {
   return Ok{};
 }
 
+Status write_file_durable(const std::string& path, const void* bytes, size_t size) {
+  const std::string temporary = path + ".tmp-" + std::to_string(::getpid());
+  Status written = [&]() -> Status {
+    UniqueFd fd(::open(temporary.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644));
+    if (fd.get() < 0) return make_error(path + ": cannot create " + temporary + ": " + errno_text(errno));
+    if (auto w = pwrite_full(fd.get(), bytes, size, 0, temporary); !w) return w;
+    return fsync_file(fd.get(), temporary);
+  }();
+  if (written) written = rename_durable(temporary, path);
+  if (!written) ::unlink(temporary.c_str());
+  return written;
+}
+
 Result<uint64_t> file_size(int fd, const std::string& path) {
   struct stat st {};
   if (::fstat(fd, &st) != 0) return make_error(path + ": cannot stat: " + errno_text(errno));

@@ -46,6 +46,9 @@ Status pwrite_full(int fd, const void* data, size_t bytes, uint64_t offset, cons
 Status fsync_file(int fd, const std::string& path);
 // Renames `from` over `to` and syncs the folder, so the rename survives a power cut.
 Status rename_durable(const std::string& from, const std::string& to);
+// Writes `bytes` to `path` through a temporary file in the same folder, fsync and
+// rename_durable: a failure leaves any earlier file untouched and no temporary behind.
+Status write_file_durable(const std::string& path, const void* bytes, size_t size);
 // Size of an open file, or an error naming `path`.
 Result<uint64_t> file_size(int fd, const std::string& path);
 // Takes a non-blocking exclusive lock on `fd` (flock): fails if another process holds it.

@@ -1,12 +1,8 @@
 #include "tools/cli_common.h"
 
-#include <unistd.h>
-
-#include <filesystem>
-#include <fstream>
-
 #include "compose/scene.h"
 #include "render/flythrough.h"
+#include "streaming/file_io.h"
 
 namespace tvt::cli {
 
@@ -49,24 +45,7 @@ Result<std::unique_ptr<vk::Context>> gpu_context(const std::string& device) {
 }
 
 Status write_text_file(const std::string& path, const std::string& text) {
-  namespace fs = std::filesystem;
-  const std::string temporary = path + ".tmp-" + std::to_string(::getpid());
-  {
-    std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
-    if (out) out << text;
-    if (!out || !out.flush()) {
-      std::error_code ignored;
-      fs::remove(temporary, ignored);
-      return make_error(path + ": cannot write the file");
-    }
-  }
-  std::error_code ec;
-  fs::rename(temporary, path, ec);
-  if (ec) {
-    fs::remove(temporary, ec);
-    return make_error(path + ": cannot write the file (" + ec.message() + ")");
-  }
-  return Ok{};
+  return fileio::write_file_durable(path, text.data(), text.size());
 }
 
 int fail(const char* command, const std::string& message, int code) {

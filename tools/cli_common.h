@@ -33,8 +33,8 @@ Result<CameraChoice> choose_camera(const std::string& camera_file, const SceneAs
 // The Vulkan context for a command: `device` (its --gpu flag) or TERRAVT_DEVICE / the best.
 Result<std::unique_ptr<vk::Context>> gpu_context(const std::string& device);
 
-// Writes `text` to `path` through a temporary file in the same folder and a rename, so a
-// failed write leaves any earlier file untouched. Errors name the path.
+// Writes `text` to `path` durably (fileio::write_file_durable): a failed write leaves any
+// earlier file untouched. Errors name the path.
 Status write_text_file(const std::string& path, const std::string& text);
 
 // Prints "terravt <command>: <message>" to stderr and returns `code`.
