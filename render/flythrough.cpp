@@ -46,7 +46,7 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
   ro.lighting = o.lighting;
   ro.height = o.height;
   ro.vt = TerrainVtInputs{&v.info_buffer(), &v.entry_buffer(), &v.cache(), v.sampler(), o.feedback_divisor,
-                          o.feedback_mode, o.max_anisotropy};
+                          o.feedback_mode, o.max_anisotropy, o.mip_filter};
   auto terrain = TerrainRenderer::create(g, assets, ro);
   if (!terrain) return terrain.error();
   TerrainRenderer& t = *terrain.value();

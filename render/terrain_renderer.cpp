@@ -26,6 +26,16 @@ glm::vec4 v4(const glm::dvec3& v, double w) { return glm::vec4(glm::dvec4(v, w))
 
 }  // namespace
 
+std::optional<VtMipFilter> mip_filter_from_string(std::string_view name) {
+  if (name == "trilinear") return VtMipFilter::Trilinear;
+  if (name == "bilinear") return VtMipFilter::Bilinear;
+  return std::nullopt;
+}
+
+const char* mip_filter_name(VtMipFilter filter) {
+  return filter == VtMipFilter::Trilinear ? "trilinear" : "bilinear";
+}
+
 Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& context, const SceneAssets& assets,
                                                                  const TerrainRendererOptions& options) {
   return create(context, assets.heightfield, assets.desc.terrain, assets.desc.vt, options);
@@ -90,9 +100,13 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
     pd.fragment_spirv = shaders::terrain_plain_frag();
   else
     pd.fragment_spirv = options.texel_output ? shaders::terrain_texel_frag() : shaders::terrain_frag();
-  if (options.vt)  // TVT_TERRAIN_SPEC_MAX_ANISOTROPY, _FEEDBACK_DIVISOR, _DETAIL_NORMAL
+  // TVT_TERRAIN_SPEC_MAX_ANISOTROPY, _FEEDBACK_DIVISOR, _DETAIL_NORMAL, _TRILINEAR
+  if (options.vt)
     pd.fragment_constants = {options.vt->max_anisotropy, options.vt->feedback_divisor,
-                             options.lighting.detail_relief_m > 0.0 ? 1u : 0u};
+                             options.lighting.detail_relief_m > 0.0 ? 1u : 0u,
+                             options.vt->mip_filter == VtMipFilter::Trilinear ? 1u : 0u};
+  else if (options.direct && options.direct->matched_lod)
+    pd.fragment_constants = {1u, 8u, 1u, options.direct->mip_filter == VtMipFilter::Trilinear ? 1u : 0u};
   pd.vertex_bindings = {{0, sizeof(TerrainVertex), VK_VERTEX_INPUT_RATE_VERTEX}};
   pd.vertex_attributes = {{gpu::TVT_TERRAIN_ATTR_GRID, 0, VK_FORMAT_R16G16B16A16_UINT, 0}};
   pd.bindings = {

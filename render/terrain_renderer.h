@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <string_view>
 
 #include <glm/glm.hpp>
 
@@ -47,6 +48,16 @@ enum class FeedbackMode : uint8_t {
                  // rotating full-resolution pixel MainPass would report (terrain_types.h)
 };
 
+// How a VT sample filters between mips (vt_lod.glsl, tvt_filtered_lod).
+enum class VtMipFilter : uint8_t {
+  Trilinear,  // the two mips around the LOD, blended: two page lookups and fetches per sample
+  Bilinear,   // the nearest mip only (GL_LINEAR_MIPMAP_NEAREST): one lookup, visible mip bands;
+              // feedback asks for that mip, so no finer page is produced than is sampled
+};
+// "trilinear" / "bilinear"; nullopt for anything else.
+std::optional<VtMipFilter> mip_filter_from_string(std::string_view name);
+const char* mip_filter_name(VtMipFilter filter);
+
 // Virtual-texture mode: albedo comes from the VT (terrain_vt*.frag) and, unless the feedback
 // mode is None, the renderer fills feedback_buffer(). The objects must outlive the renderer
 // (render/vt_system.h owns them).
@@ -62,6 +73,7 @@ struct TerrainVtInputs {
   // page border B, so the taps stay inside the looked-up slot (docs/renderer.md). Feedback
   // asks for the mips the anisotropic LOD selects.
   uint32_t max_anisotropy = 1;
+  VtMipFilter mip_filter = VtMipFilter::Trilinear;  // also the separate feedback pass's
   // Adds colour attachment 1 (R32G32B32A32_SFLOAT), per pixel: x LOD, y data mip of the finer
   // lookup, z data mip of the coarser one (-1: one mip only), w distance in data-mip texels from
   // the sample points to the nearest page-payload edge (< 1/2: bilinear taps read the border).
@@ -78,6 +90,7 @@ struct TerrainDirectInputs {
   // filtered as the VT sampler filters the cache — what the VT shows when every wanted page
   // is resident (tests).
   bool matched_lod = false;
+  VtMipFilter mip_filter = VtMipFilter::Trilinear;  // matched_lod: the VT filter to match
 };
 
 // Plain-texture mode: one mip-mapped texture over the terrain (render/plain_texture.h), which

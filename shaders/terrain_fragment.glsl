@@ -78,6 +78,7 @@ layout(std140, set = 0, binding = TVT_BIND_TERRAIN_FEEDBACK_PARAMS) uniform Feed
 layout(constant_id = TVT_TERRAIN_SPEC_MAX_ANISOTROPY) const int k_max_anisotropy = 1;
 layout(constant_id = TVT_TERRAIN_SPEC_FEEDBACK_DIVISOR) const uint k_feedback_divisor = 8u;  // = FB.divisor
 layout(constant_id = TVT_TERRAIN_SPEC_DETAIL_NORMAL) const bool k_detail_normal = true;
+layout(constant_id = TVT_TERRAIN_SPEC_TRILINEAR) const bool k_trilinear = true;
 
 #ifdef TVT_TERRAIN_VT_PROBE
 // Distance in data-mip texels from the lookup's sample point to the nearest edge of the page
@@ -113,7 +114,8 @@ vec4 terrain_albedo(TerrainFragment f) {
   const vec2 whole = floor(f.local_texel);
   const ivec2 ti = ivec2(f.anchor_texel) + ivec2(whole);
   const vec2 tf = f.local_texel - whole;
-  const VtFootprint fp = vt_footprint(f.dtexel_dx, f.dtexel_dy, VT.mip_bias, k_max_anisotropy);
+  VtFootprint fp = vt_footprint(f.dtexel_dx, f.dtexel_dy, VT.mip_bias, k_max_anisotropy);
+  fp.lod = tvt_filtered_lod(fp.lod, k_trilinear);  // bilinear: one mip, which feedback then asks for
 #ifdef TVT_TERRAIN_VT_FEEDBACK
   const uvec2 px = uvec2(gl_FragCoord.xy);
   if (px.x % k_feedback_divisor == FB.offset_x && px.y % k_feedback_divisor == FB.offset_y) {
@@ -137,6 +139,7 @@ layout(std430, set = 0, binding = TVT_BIND_TERRAIN_WEIGHTS) readonly buffer Weig
 
 #ifdef TVT_TERRAIN_DIRECT_MATCHED
 #include "vt_lod.glsl"
+layout(constant_id = TVT_TERRAIN_SPEC_TRILINEAR) const bool k_trilinear = true;
 // Texel i of VT mip `mip` exactly as compose.comp writes it into a page: the composition at
 // the texel's centre with a footprint of 2^mip level-0 texels, edge texels repeated beyond
 // the terrain.
@@ -165,14 +168,16 @@ vec4 direct_bilinear(i64vec2 ti, vec2 tf, int mip, out vec2 dh) {
 }
 
 // Direct splatting at matched LOD: the composition evaluated at the texel centres of the
-// mip(s) the VT's LOD selects (vt_lod_iso, no bias) and filtered as vt_sample_dh() filters the
-// cache: bilinear within a mip, linear across two. The VT image without the cache.
+// mip(s) the VT's LOD selects (vt_lod_iso, no bias, the same mip filter) and filtered as
+// vt_sample_dh() filters the cache: bilinear within a mip, linear across two (trilinear). The
+// VT image without the cache.
 vec4 terrain_albedo(TerrainFragment f) {
   const vec2 whole = floor(f.local_texel);
   const i64vec2 ti = f.anchor_texel + i64vec2(whole);
   const vec2 tf = f.local_texel - whole;
   const int mip_count = P.log2_vt - findMSB(uint(P.page_texels)) + 1;
-  const float l = clamp(vt_lod_iso(f.dtexel_dx, f.dtexel_dy, 0.0), 0.0, float(mip_count - 1));
+  const float lod = tvt_filtered_lod(vt_lod_iso(f.dtexel_dx, f.dtexel_dy, 0.0), k_trilinear);
+  const float l = clamp(lod, 0.0, float(mip_count - 1));
   const int m0 = int(floor(l));
   const float t = m0 + 1 >= mip_count ? 0.0 : l - float(m0);
   const vec4 a = direct_bilinear(ti, tf, m0, g_height_gradient);

@@ -43,6 +43,13 @@ VtFootprint vt_footprint(vec2 dx, vec2 dy, float bias, int max_taps) {
   return fp;
 }
 
+// The LOD a sample actually uses under the mip filter: itself (trilinear: the two mips around
+// it, blended) or, bilinear, the nearest mip as GL_LINEAR_MIPMAP_NEAREST picks it (ties go to
+// the finer mip), so one page lookup serves the sample and feedback asks for exactly that page.
+float tvt_filtered_lod(float lod, bool trilinear) {
+  return trilinear ? lod : max(ceil(lod + 0.5) - 1.0, 0.0);
+}
+
 // Feedback texel (feedback_types.h) naming the page that a sample at `lod` wants: the finer
 // of its two mips, before any fallback to a resident ancestor. Positions outside the terrain
 // clamp to its edge. 32-bit: texel coordinates on a terrain of V <= 2^30 fit int32.

@@ -39,61 +39,85 @@ struct Diff {
   double psnr() const { return se == 0 ? 99.0 : 10.0 * std::log10(255.0 * 255.0 * double(channels) / se); }
 };
 
-class GpuVtMatchedLod : public GpuTest {};
+// One camera over varied terrain, the cache converged for it by a VT writer with the given mip
+// filter, then the same frame through the VT (probe attachment), the direct pass at matched
+// LOD (same filter) and the continuous direct pass.
+class GpuVtMatchedLod : public GpuTest {
+ protected:
+  static constexpr uint32_t w = 256, h = 144;
+
+  void converge_and_render(VtMipFilter filter) {
+    auto loaded = load_scene_assets(default_scene());
+    ASSERT_TRUE(loaded.ok());
+    assets = std::move(loaded.value());
+    auto packing = pack_scene(assets, options_for(Method::FbpbDpt));
+    ASSERT_TRUE(packing.ok());
+    packed = std::move(packing.value());
+    VtSystemOptions vo;
+    vo.cache_slots = 512;
+    vo.page_budget = 64;
+    auto made = VtSystem::create(ctx(), packed, vo);
+    ASSERT_TRUE(made.ok()) << made.error().message;
+    vt = std::move(made.value());
+    VtSystem& v = *vt;
+
+    base.width = w;
+    base.height = h;
+    TerrainVtInputs vi{&v.info_buffer(), &v.entry_buffer(), &v.cache(), v.sampler(), 2};
+    vi.mip_filter = filter;
+    TerrainRendererOptions writer_o = base;
+    writer_o.vt = vi;
+    auto writer = TerrainRenderer::create(ctx(), assets, writer_o);
+    ASSERT_TRUE(writer.ok()) << writer.error().message;
+    probe_o = base;
+    probe_o.vt = vi;
+    probe_o.vt->feedback = FeedbackMode::None;
+    probe_o.vt->probe_output = true;
+    auto probe = TerrainRenderer::create(ctx(), assets, probe_o);
+    ASSERT_TRUE(probe.ok()) << probe.error().message;
+    auto made_composer = GpuComposer::create(ctx(), packed, 1);
+    ASSERT_TRUE(made_composer.ok());
+    composer = std::move(made_composer.value());
+    direct_o = base;
+    direct_o.direct = TerrainDirectInputs{composer.get(), true, filter};
+    auto matched = TerrainRenderer::create(ctx(), assets, direct_o);
+    ASSERT_TRUE(matched.ok()) << matched.error().message;
+    TerrainRendererOptions continuous_o = direct_o;
+    continuous_o.direct->matched_lod = false;
+    auto continuous = TerrainRenderer::create(ctx(), assets, continuous_o);
+    ASSERT_TRUE(continuous.ok());
+
+    // A low pass over varied terrain: mips 0 ... 6 on screen, many page borders.
+    const CameraPath path = flythrough_path(assets, writer.value()->mesh());
+    cam = path.camera_at(path.start_time() + 0.5);
+    auto driver = VtFrameDriver::create(ctx(), v, *writer.value());
+    ASSERT_TRUE(driver.ok()) << driver.error().message;
+    const VtConvergence conv = driver.value()->converge(cam, 60);
+    ASSERT_TRUE(conv.converged) << "no convergence in " << conv.frames << " frames";
+    EXPECT_EQ(v.stats().residency.mip_bias, 0u);  // the matched pass assumes no bias
+    resident = v.stats().residency.resident;
+
+    vt_img = probe.value()->render(cam);
+    pr = read_probe(*probe.value());
+    direct_img = matched.value()->render(cam);
+    continuous_img = continuous.value()->render(cam);
+  }
+
+  SceneAssets assets;
+  PackedScene packed;
+  std::unique_ptr<VtSystem> vt;
+  std::unique_ptr<GpuComposer> composer;
+  TerrainRendererOptions base, probe_o, direct_o;
+  Camera cam;
+  uint32_t resident = 0;  // pages resident once converged
+  ImageRGBA8 vt_img, direct_img, continuous_img;
+  std::vector<Probe> pr;
+};
 
 }  // namespace
 
 TEST_F(GpuVtMatchedLod, VtEqualsDirectSplattingAtMatchedLod) {
-  auto assets = load_scene_assets(default_scene());
-  ASSERT_TRUE(assets.ok());
-  auto packed = pack_scene(assets.value(), options_for(Method::FbpbDpt));
-  ASSERT_TRUE(packed.ok());
-  VtSystemOptions vo;
-  vo.cache_slots = 512;
-  vo.page_budget = 64;
-  auto vt = VtSystem::create(ctx(), packed.value(), vo);
-  ASSERT_TRUE(vt.ok()) << vt.error().message;
-  VtSystem& v = *vt.value();
-
-  const uint32_t w = 256, h = 144;
-  TerrainRendererOptions base;
-  base.width = w;
-  base.height = h;
-  TerrainVtInputs vi{&v.info_buffer(), &v.entry_buffer(), &v.cache(), v.sampler(), 2};
-  TerrainRendererOptions writer_o = base;
-  writer_o.vt = vi;
-  auto writer = TerrainRenderer::create(ctx(), assets.value(), writer_o);
-  ASSERT_TRUE(writer.ok()) << writer.error().message;
-  TerrainRendererOptions probe_o = base;
-  probe_o.vt = vi;
-  probe_o.vt->feedback = FeedbackMode::None;
-  probe_o.vt->probe_output = true;
-  auto probe = TerrainRenderer::create(ctx(), assets.value(), probe_o);
-  ASSERT_TRUE(probe.ok()) << probe.error().message;
-  auto composer = GpuComposer::create(ctx(), packed.value(), 1);
-  ASSERT_TRUE(composer.ok());
-  TerrainRendererOptions direct_o = base;
-  direct_o.direct = TerrainDirectInputs{composer.value().get(), true};
-  auto matched = TerrainRenderer::create(ctx(), assets.value(), direct_o);
-  ASSERT_TRUE(matched.ok()) << matched.error().message;
-  direct_o.direct->matched_lod = false;
-  auto continuous = TerrainRenderer::create(ctx(), assets.value(), direct_o);
-  ASSERT_TRUE(continuous.ok());
-
-  // A low pass over varied terrain: mips 0 ... 6 on screen, many page borders.
-  const CameraPath path = flythrough_path(assets.value(), writer.value()->mesh());
-  const Camera cam = path.camera_at(path.start_time() + 0.5);
-  auto driver = VtFrameDriver::create(ctx(), v, *writer.value());
-  ASSERT_TRUE(driver.ok()) << driver.error().message;
-  const VtConvergence conv = driver.value()->converge(cam, 60);
-  ASSERT_TRUE(conv.converged) << "no convergence in " << conv.frames << " frames";
-  EXPECT_EQ(v.stats().residency.mip_bias, 0u);  // the matched pass assumes no bias
-
-  const ImageRGBA8 vt_img = probe.value()->render(cam);
-  const std::vector<Probe> pr = read_probe(*probe.value());
-  const ImageRGBA8 direct_img = matched.value()->render(cam);
-  const ImageRGBA8 continuous_img = continuous.value()->render(cam);
-
+  ASSERT_NO_FATAL_FAILURE(converge_and_render(VtMipFilter::Trilinear));
   Diff frame, terrain, border, cont;
   size_t terrain_px = 0, mismatched_mips = 0;
   int mip_lo = 99, mip_hi = -1;
@@ -108,7 +132,7 @@ TEST_F(GpuVtMatchedLod, VtEqualsDirectSplattingAtMatchedLod) {
       ++terrain_px;
       terrain.add(a, b);
       // Matched: the VT read the mips its LOD wants (no fallback to an ancestor).
-      const int want = std::min(int(std::floor(p.lod)), int(assets->desc.vt.mip_count()) - 1);
+      const int want = std::min(int(std::floor(p.lod)), int(assets.desc.vt.mip_count()) - 1);
       mismatched_mips += int(p.fine_mip) != want;
       mip_lo = std::min(mip_lo, want);
       mip_hi = std::max(mip_hi, want);
@@ -138,8 +162,8 @@ TEST_F(GpuVtMatchedLod, VtEqualsDirectSplattingAtMatchedLod) {
   flat_vt_o.lighting.detail_relief_m = 0.0;
   flat_direct_o.lighting.detail_relief_m = 0.0;
   flat_direct_o.direct->matched_lod = true;
-  auto flat_vt = TerrainRenderer::create(ctx(), assets.value(), flat_vt_o);
-  auto flat_direct = TerrainRenderer::create(ctx(), assets.value(), flat_direct_o);
+  auto flat_vt = TerrainRenderer::create(ctx(), assets, flat_vt_o);
+  auto flat_direct = TerrainRenderer::create(ctx(), assets, flat_direct_o);
   ASSERT_TRUE(flat_vt.ok() && flat_direct.ok());
   const ImageRGBA8 flat_vt_img = flat_vt.value()->render(cam), flat_direct_img = flat_direct.value()->render(cam);
   Diff relief, flat;
@@ -154,4 +178,47 @@ TEST_F(GpuVtMatchedLod, VtEqualsDirectSplattingAtMatchedLod) {
   EXPECT_LT(relief.psnr(), 48.0);  // measured 42.7 dB with 1 m of relief
   EXPECT_GE(relief.worst, 8);      // measured 22/255
   EXPECT_GE(flat.psnr(), 45.0);
+}
+
+// The bilinear mip filter (--vt-filter bilinear): one page lookup from the nearest mip. The VT
+// still equals direct splatting at matched LOD with the same filter; its feedback asked for
+// exactly the mip it samples (no pixel falls back to an ancestor, none reads a second mip);
+// and the view needs fewer resident pages than trilinear, whose finer mip is wanted wherever
+// the LOD is past a half.
+TEST_F(GpuVtMatchedLod, BilinearVtEqualsDirectSplattingAndNeedsFewerPages) {
+  ASSERT_NO_FATAL_FAILURE(converge_and_render(VtMipFilter::Trilinear));
+  const uint32_t trilinear_resident = resident;
+  const ImageRGBA8 trilinear_img = vt_img;
+  ASSERT_NO_FATAL_FAILURE(converge_and_render(VtMipFilter::Bilinear));
+
+  Diff terrain, border, against_trilinear;
+  size_t terrain_px = 0, mismatched_mips = 0, second_mip = 0, fractional_lod = 0;
+  for (uint32_t y = 0; y < h; ++y)
+    for (uint32_t x = 0; x < w; ++x) {
+      const Probe& p = pr[y * w + x];
+      if (p.lod < 0.0f) continue;  // sky
+      const uint8_t* a = vt_img.at(int(x), int(y));
+      ++terrain_px;
+      terrain.add(a, direct_img.at(int(x), int(y)));
+      against_trilinear.add(a, trilinear_img.at(int(x), int(y)));
+      fractional_lod += p.lod != std::floor(p.lod);
+      const int want = std::min(int(p.lod), int(assets.desc.vt.mip_count()) - 1);
+      mismatched_mips += int(p.fine_mip) != want;
+      second_mip += p.coarse_mip != -1.0f;
+      if (p.edge < 1.0f) border.add(a, direct_img.at(int(x), int(y)));
+    }
+  std::fprintf(stderr,
+               "bilinear VT vs matched direct: %.2f dB terrain (%zu px), worst %d/255; border %zu px worst %d/255; "
+               "vs trilinear VT %.2f dB; resident pages %u (trilinear %u)\n",
+               terrain.psnr(), terrain_px, terrain.worst, border.channels / 3, border.worst, against_trilinear.psnr(),
+               resident, trilinear_resident);
+  ASSERT_GT(terrain_px, size_t(w * h / 2));
+  EXPECT_EQ(fractional_lod, 0u);
+  EXPECT_EQ(mismatched_mips, 0u);
+  EXPECT_EQ(second_mip, 0u);
+  ASSERT_GT(border.channels / 3, 300u);
+  EXPECT_GE(terrain.psnr(), 45.0);
+  EXPECT_LE(border.worst, 8);
+  EXPECT_LT(against_trilinear.psnr(), 45.0);  // the filter changes the picture: mip bands
+  EXPECT_LT(resident, trilinear_resident);
 }

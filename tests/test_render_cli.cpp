@@ -38,10 +38,11 @@ class RenderCli : public ::testing::Test {
 TEST_F(RenderCli, ShortFlythroughWritesFramesAndOneStatsLinePerFrame) {
   const std::string out = path("out");
   ASSERT_EQ(run("render --quiet --frames 6 --every 2 --width 64 --height 36 --cache-slots 64 --page-budget 8 "
-                "--frames-in-flight 3 --method linear --out " + out),
+                "--frames-in-flight 3 --method linear --vt-filter bilinear --out " + out),
             0)
       << output_;
   EXPECT_EQ(output_.find("vulkan"), std::string::npos) << output_;  // no validation message
+  EXPECT_NE(output_.find("bilinear filter"), std::string::npos) << output_;
   EXPECT_NE(output_.find("6 frames in"), std::string::npos) << output_;
   for (const char* f : {"frame_00000.png", "frame_00002.png", "frame_00004.png", "frame_00005.png"})
     EXPECT_TRUE(fs::exists(fs::path(out) / f)) << f;
@@ -86,6 +87,7 @@ TEST_F(RenderCli, BadFlagsExitWithTheirNameAndWriteNothing) {
       {"--source stored --store " + missing, "missing.tvt"},
       {"--store " + missing, "--store"},
       {"--feedback sideways", "--feedback"},
+      {"--vt-filter nearest", "--vt-filter"},
       {"--loader-threads 0", "--loader-threads"},
       {"--scene " + path("bad.json"), "log2_size"},
       {"--camera " + path("missing-camera.json"), "missing-camera.json: cannot read camera file"},

@@ -5,7 +5,9 @@
 //    every pass renders the pose `rounds` times in turn and keeps its fastest; figures are
 //    medians over the poses, ratios medians of the per-pose ratios. Passes: plain texture,
 //    VT (main-pass feedback, as it runs), VT without feedback, VT + separate feedback pass, VT
-//    anisotropic, direct splatting, untextured. Wall clock of submit + wait per pass.
+//    anisotropic, direct splatting, untextured, then plain/VT without the detail normal and VT
+//    with the bilinear mip filter (plus the image error of the mip filters). Process CPU time
+//    (CPU device) or wall clock of submit + wait per pass.
 // 2. The flythrough loop (render/flythrough.h) with each feedback variant: steady frames
 //    (nothing composed), all frames (page production included), time-to-sharp after the cut,
 //    feedback CPU time per frame.
@@ -22,6 +24,7 @@
 #include <functional>
 #include <memory>
 
+#include "compose/image_diff.h"
 #include "compose/packed_scene.h"
 #include "render/feedback_compactor.h"
 #include "render/flythrough.h"
@@ -50,20 +53,25 @@ double median(std::vector<double> v) {
 }
 
 // The passes of the static comparison, in timing order.
-// The *Flat passes have the detail normal off (relief 0): the knob's cost, measured.
+// The *Flat passes have the detail normal off (relief 0), the *Bilinear ones sample the
+// nearest mip only (VtMipFilter::Bilinear): the knobs' costs, measured.
 enum Pass {
   kPlain, kVt, kVtNoFeedback, kVtSeparate, kVtAniso, kDirect, kUntextured,
-  kPlainFlat, kVtFlat, kVtNoFeedbackFlat, kPassCount
+  kPlainFlat, kVtFlat, kVtNoFeedbackFlat, kVtBilinear, kVtBilinearNoFeedback, kPassCount
 };
 constexpr const char* k_pass_names[kPassCount] = {"plain", "vt", "vt_no_feedback", "vt_separate_feedback",
                                                   "vt_aniso", "direct", "untextured", "plain_no_detail",
-                                                  "vt_no_detail", "vt_no_feedback_no_detail"};
+                                                  "vt_no_detail", "vt_no_feedback_no_detail", "vt_bilinear",
+                                                  "vt_bilinear_no_feedback"};
 
 struct StaticResult {
   std::vector<double> ms[kPassCount];  // per pose: fastest of the rounds
   double compaction_ms = 0;            // GPU feedback compaction, per frame
   uint32_t unconverged_poses = 0;
   uint32_t converge_frames = 0;
+  // Image error of the mip filters, per pose (PSNR over RGB, dB): bilinear VT against
+  // trilinear VT, and each against direct splatting (the composition per pixel).
+  std::vector<double> psnr_bilinear_trilinear, psnr_trilinear_direct, psnr_bilinear_direct;
   double pass(Pass p) const { return median(ms[p]); }
   double ratio(Pass a, Pass b) const {
     std::vector<double> r;
@@ -104,9 +112,10 @@ Result<StaticResult> measure_static(vk::Context& g, const SceneAssets& assets, M
   TerrainRendererOptions base;
   base.width = a.width;
   base.height = a.height;
-  auto vt_pass = [&](FeedbackMode mode, uint32_t aniso) {
+  auto vt_pass = [&](FeedbackMode mode, uint32_t aniso, VtMipFilter filter = VtMipFilter::Trilinear) {
     TerrainRendererOptions o = base;
-    o.vt = TerrainVtInputs{&v.info_buffer(), &v.entry_buffer(), &v.cache(), v.sampler(), a.feedback_divisor, mode, aniso};
+    o.vt = TerrainVtInputs{&v.info_buffer(), &v.entry_buffer(), &v.cache(), v.sampler(), a.feedback_divisor, mode, aniso,
+                           filter};
     return TerrainRenderer::create(g, assets, o);
   };
   std::unique_ptr<TerrainRenderer> passes[kPassCount];
@@ -130,6 +139,8 @@ Result<StaticResult> measure_static(vk::Context& g, const SceneAssets& assets, M
     o.vt = TerrainVtInputs{&v.info_buffer(), &v.entry_buffer(), &v.cache(), v.sampler(), a.feedback_divisor, mode, 1};
     made.push_back(TerrainRenderer::create(g, assets, o));
   }
+  made.push_back(vt_pass(FeedbackMode::MainPass, 1, VtMipFilter::Bilinear));
+  made.push_back(vt_pass(FeedbackMode::None, 1, VtMipFilter::Bilinear));
   for (int p = 0; p < kPassCount; ++p) {
     if (!made[size_t(p)]) return made[size_t(p)].error();
     passes[p] = std::move(made[size_t(p)].value());
@@ -171,6 +182,11 @@ Result<StaticResult> measure_static(vk::Context& g, const SceneAssets& assets, M
         if (round > 0) best[p] = std::min(best[p], ms);
       }
     for (int p = 0; p < kPassCount; ++p) r.ms[p].push_back(best[p]);
+    const ImageRGBA8 tri = passes[kVtNoFeedback]->render(cam), bi = passes[kVtBilinearNoFeedback]->render(cam);
+    const ImageRGBA8 direct = passes[kDirect]->render(cam);
+    r.psnr_bilinear_trilinear.push_back(compare_images(bi, tri).psnr_db);
+    r.psnr_trilinear_direct.push_back(compare_images(tri, direct).psnr_db);
+    r.psnr_bilinear_direct.push_back(compare_images(bi, direct).psnr_db);
   }
   r.compaction_ms = compactor.value()->time_compaction(passes[kVt]->feedback_buffer(), 9) * 1000.0;
   return r;
@@ -325,6 +341,16 @@ int run_bench_frame(const BenchFrameArgs& a) {
                 std::string(to_string(methods[i])).c_str(), r.pass(kPlainFlat), r.pass(kVtFlat),
                 r.ratio(kVtFlat, kPlainFlat), r.difference(kVt, kVtFlat), r.ratio(kVtNoFeedbackFlat, kPlainFlat));
   }
+  std::printf("\nMip filter (--vt-filter): bilinear samples the nearest mip only, one page lookup instead of two;\n"
+              "image error as PSNR over the frame (median over poses; direct = the composition per pixel):");
+  for (size_t i = 0; i < methods.size(); ++i) {
+    const StaticResult& r = statics[i];
+    std::printf("\n  %-10s VT trilinear %.1f  bilinear %.1f ms (VT/plain %.2fx -> %.2fx; noFB/plain %.2fx -> %.2fx)\n"
+                "  %-10s PSNR bilinear vs trilinear %.1f dB; vs direct: trilinear %.1f dB, bilinear %.1f dB",
+                std::string(to_string(methods[i])).c_str(), r.pass(kVt), r.pass(kVtBilinear), r.ratio(kVt, kPlain),
+                r.ratio(kVtBilinear, kPlain), r.ratio(kVtNoFeedback, kPlain), r.ratio(kVtBilinearNoFeedback, kPlain), "",
+                median(r.psnr_bilinear_trilinear), median(r.psnr_trilinear_direct), median(r.psnr_bilinear_direct));
+  }
   std::printf("\n\nFeedback cost per frame (GPU, same poses): main-pass writes vs a separate 1/%u pass, plus compaction:\n",
               a.feedback_divisor);
   for (size_t i = 0; i < methods.size(); ++i) {
@@ -353,6 +379,11 @@ int run_bench_frame(const BenchFrameArgs& a) {
     e["no_detail"] = {{"vt_over_plain", statics[i].ratio(kVtFlat, kPlainFlat)},
                       {"vt_no_feedback_over_plain", statics[i].ratio(kVtNoFeedbackFlat, kPlainFlat)},
                       {"detail_cost_vt_ms", statics[i].difference(kVt, kVtFlat)}};
+    e["bilinear"] = {{"vt_over_plain", statics[i].ratio(kVtBilinear, kPlain)},
+                     {"vt_no_feedback_over_plain", statics[i].ratio(kVtBilinearNoFeedback, kPlain)},
+                     {"psnr_vs_trilinear_db", median(statics[i].psnr_bilinear_trilinear)},
+                     {"psnr_vs_direct_db", median(statics[i].psnr_bilinear_direct)},
+                     {"trilinear_psnr_vs_direct_db", median(statics[i].psnr_trilinear_direct)}};
     e["feedback_gpu_ms"] = {{"main_pass", statics[i].difference(kVt, kVtNoFeedback)},
                             {"separate_pass", statics[i].difference(kVtSeparate, kVtNoFeedback)},
                             {"compaction", statics[i].compaction_ms}};

@@ -39,6 +39,7 @@ struct RenderArgs {
   bool sync_loads = false;
   std::string feedback = "main";
   uint32_t anisotropy = 1;
+  std::string vt_filter = "trilinear";
   uint32_t frames_in_flight = 2;
   double detail_relief = TerrainLighting{}.detail_relief_m;
   uint32_t frames = 120;
@@ -75,6 +76,8 @@ int run_render(const RenderArgs& a) {
   if (a.loader_threads < 1 || a.loader_threads > 64) return fail(cmd, "--loader-threads: must be between 1 and 64", 2);
   if (a.staging < 1 || a.staging > 4096) return fail(cmd, "--staging: must be between 1 and 4096", 2);
   if (a.feedback != "main" && a.feedback != "separate") return fail(cmd, "--feedback: main or separate, got '" + a.feedback + "'", 2);
+  const auto mip_filter = mip_filter_from_string(a.vt_filter);
+  if (!mip_filter) return fail(cmd, "--vt-filter: trilinear or bilinear, got '" + a.vt_filter + "'", 2);
   std::shared_ptr<const PageStoreReader> store;
   if (!a.store.empty()) {
     auto opened = PageStoreReader::open(a.store);
@@ -137,12 +140,14 @@ int run_render(const RenderArgs& a) {
   fo.vt.sync_loads = a.sync_loads;
   fo.feedback_mode = a.feedback == "separate" ? FeedbackMode::SeparatePass : FeedbackMode::MainPass;
   fo.max_anisotropy = a.anisotropy;
+  fo.mip_filter = *mip_filter;
   fo.frames_in_flight = a.frames_in_flight;
   fo.lighting.detail_relief_m = a.detail_relief;
   fo.debug_view = a.debug_mips ? 1 : 0;
-  std::printf("terravt render: %s, V = 2^%u, %ux%u, %u frames, method %s, source %s, cache %u pages, budget %u/frame, device %s\n",
-              assets->desc.source_path.c_str(), assets->desc.vt.log2_size, a.width, a.height, frames,
-              a.method.c_str(), a.source.c_str(), a.cache_slots, a.page_budget, g.device_name().c_str());
+  std::printf("terravt render: %s, V = 2^%u, %ux%u, %u frames, method %s, source %s, cache %u pages, budget %u/frame, "
+              "%s filter, device %s\n",
+              assets->desc.source_path.c_str(), assets->desc.vt.log2_size, a.width, a.height, frames, a.method.c_str(),
+              a.source.c_str(), a.cache_slots, a.page_budget, a.vt_filter.c_str(), g.device_name().c_str());
   std::printf("camera: %s\n", camera->describe().c_str());
   uint32_t written = 0;
   std::string write_error;
@@ -258,6 +263,9 @@ const CommandRegistrar k_register{
       app.add_option("--staging", a->staging, "Stored pages staged at once (loads outstanding at most)")->capture_default_str();
       app.add_option("--feedback", a->feedback, "Feedback written by the main pass (one rotating pixel per N x N) or a separate 1/N pass")->capture_default_str();
       app.add_option("--anisotropy", a->anisotropy, "VT taps per mip along the footprint (1: isotropic; at most the page border)")->capture_default_str();
+      app.add_option("--vt-filter", a->vt_filter,
+                     "Between VT mips: trilinear (two page lookups, blended) or bilinear (nearest mip, one lookup, cheaper)")
+          ->capture_default_str();
       app.add_option("--detail-relief", a->detail_relief, "Metres of material height relief for the detail normal (0: off)")->capture_default_str();
       app.add_option("--frames-in-flight", a->frames_in_flight, "Frames recorded ahead of the GPU (1: wait for each frame)")->capture_default_str();
       app.add_flag("--sync-loads", a->sync_loads, "Wait for each frame's stored pages (frame-exact comparisons)");
