@@ -27,7 +27,7 @@ struct FlythroughOptions {
   uint32_t width = 640, height = 360;   // pixels
   double fps = 10.0;                    // camera-path frames per second
   uint32_t feedback_divisor = 8;        // N
-  FeedbackMode feedback_mode = FeedbackMode::MainPass;  // who writes feedback (MainPass or SeparatePass)
+  FeedbackMode feedback_mode = FeedbackMode::Attachment;  // who writes feedback (not None)
   uint32_t max_anisotropy = 1;          // VT taps per mip along the footprint (1: isotropic; <= B)
   VtMipFilter mip_filter = VtMipFilter::Trilinear;  // between mips: blend two, or nearest only
   VtSystemOptions vt;

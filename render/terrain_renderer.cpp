@@ -26,6 +26,22 @@ glm::vec4 v4(const glm::dvec3& v, double w) { return glm::vec4(glm::dvec4(v, w))
 
 }  // namespace
 
+std::optional<FeedbackMode> feedback_mode_from_string(std::string_view name) {
+  for (FeedbackMode m : {FeedbackMode::None, FeedbackMode::MainPass, FeedbackMode::Attachment, FeedbackMode::SeparatePass})
+    if (name == feedback_mode_name(m)) return m;
+  return std::nullopt;
+}
+
+const char* feedback_mode_name(FeedbackMode mode) {
+  switch (mode) {
+    case FeedbackMode::None: return "none";
+    case FeedbackMode::MainPass: return "main";
+    case FeedbackMode::Attachment: return "attachment";
+    case FeedbackMode::SeparatePass: return "separate";
+  }
+  return "?";
+}
+
 std::optional<VtMipFilter> mip_filter_from_string(std::string_view name) {
   if (name == "trilinear") return VtMipFilter::Trilinear;
   if (name == "bilinear") return VtMipFilter::Bilinear;
@@ -57,7 +73,7 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
                       std::to_string(options.lighting.detail_relief_m));
   const bool probe = options.vt && options.vt->probe_output;
   const FeedbackMode feedback = options.vt ? options.vt->feedback : FeedbackMode::None;
-  if (probe && feedback == FeedbackMode::MainPass)
+  if (probe && (feedback == FeedbackMode::MainPass || feedback == FeedbackMode::Attachment))
     return make_error("terrain renderer: vt.probe_output needs feedback None or SeparatePass");
 
   // A direct-splat pass reads every material: a material that cannot be loaded is this call's
@@ -85,6 +101,7 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
   td.color_formats = {VK_FORMAT_R8G8B8A8_UNORM};
   if (options.texel_output) td.color_formats.push_back(VK_FORMAT_R32G32B32A32_UINT);
   if (probe) td.color_formats.push_back(VK_FORMAT_R32G32B32A32_SFLOAT);
+  if (feedback == FeedbackMode::Attachment) td.color_formats.push_back(VK_FORMAT_R32G32_UINT);
   td.depth = true;
   r->target_ = vk::RenderTarget(context, td);
 
@@ -93,6 +110,7 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
   if (options.vt)
     pd.fragment_spirv = probe                                ? shaders::terrain_vt_probe_frag()
                         : feedback == FeedbackMode::MainPass ? shaders::terrain_vt_frag()
+                        : feedback == FeedbackMode::Attachment ? shaders::terrain_vt_attach_frag()
                                                              : shaders::terrain_vt_nofb_frag();
   else if (options.direct)
     pd.fragment_spirv = options.direct->matched_lod ? shaders::terrain_direct_matched_frag() : shaders::terrain_direct_frag();
@@ -267,7 +285,8 @@ void TerrainRenderer::record(VkCommandBuffer cmd, const Camera& camera) {
     feedback_.offset_x = (i * 7u) % n;  // a scrambled walk over the block
     feedback_.offset_y = (i / n + i * 3u) % n;
     vkCmdUpdateBuffer(cmd, feedback_params_buffer_.handle(), 0, sizeof(feedback_), &feedback_);
-    if (feedback == FeedbackMode::MainPass) vkCmdFillBuffer(cmd, feedback_buffer_.handle(), 0, VK_WHOLE_SIZE, 0xffffffffu);
+    if (feedback == FeedbackMode::MainPass || feedback == FeedbackMode::Attachment)
+      vkCmdFillBuffer(cmd, feedback_buffer_.handle(), 0, VK_WHOLE_SIZE, 0xffffffffu);
   }
   ++frames_recorded_;
   vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
@@ -282,6 +301,8 @@ void TerrainRenderer::record(VkCommandBuffer cmd, const Camera& camera) {
   clears[0].float32[3] = 1.0f;
   if (options_.texel_output)
     for (uint32_t& c : clears[1].uint32) c = kNoTexel;
+  else if (feedback == FeedbackMode::Attachment)
+    for (uint32_t& c : clears[1].uint32) c = gpu::TVT_FEEDBACK_EMPTY_WORD;
   else
     for (float& c : clears[1].float32) c = -1.0f;  // the VT probe's "sky"
 
@@ -295,6 +316,7 @@ void TerrainRenderer::record(VkCommandBuffer cmd, const Camera& camera) {
   draw_chunks(cmd, pipeline_, descriptors_, draws, frame);
   target_.end(cmd);
   if (feedback == FeedbackMode::SeparatePass) record_feedback_pass(cmd, draws, frame);
+  if (feedback == FeedbackMode::Attachment) record_feedback_copy(cmd);
   if (feedback != FeedbackMode::None) {
     // Feedback texels (fragment stores or the separate pass's copy) are read by the
     // compactor's compute passes.
@@ -355,6 +377,29 @@ void TerrainRenderer::record_feedback_pass(VkCommandBuffer cmd, const std::vecto
   region.imageExtent = {feedback_.width, feedback_.height, 1};
   vkCmdCopyImageToBuffer(cmd, feedback_target_.color(0).handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
                          feedback_buffer_.handle(), 1, &region);
+}
+
+// FeedbackMode::Attachment: one copy region per feedback texel from its rotating pixel
+// (x N + offset_x, y N + offset_y) of attachment 1; texels whose pixel lies beyond the image
+// keep the fill's empty words. The buffer fill at the frame's start happened before the pass.
+void TerrainRenderer::record_feedback_copy(VkCommandBuffer cmd) {
+  const uint32_t n = feedback_.divisor;
+  feedback_regions_.clear();
+  for (uint32_t y = 0; y < feedback_.height; ++y)
+    for (uint32_t x = 0; x < feedback_.width; ++x) {
+      const uint32_t px = x * n + feedback_.offset_x, py = y * n + feedback_.offset_y;
+      if (px >= options_.width || py >= options_.height) continue;
+      VkBufferImageCopy& r = feedback_regions_.emplace_back();
+      r.bufferOffset = (VkDeviceSize(y) * feedback_.width + x) * 8;
+      r.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+      r.imageOffset = {int32_t(px), int32_t(py), 0};
+      r.imageExtent = {1, 1, 1};
+    }
+  // The fill (transfer) before the pass and this copy (transfer) write the same buffer.
+  vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
+                              VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT);
+  vkCmdCopyImageToBuffer(cmd, target_.color(1).handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, feedback_buffer_.handle(),
+                         uint32_t(feedback_regions_.size()), feedback_regions_.data());
 }
 
 ImageRGBA8 TerrainRenderer::render(const Camera& camera) {

@@ -42,11 +42,19 @@ struct TerrainLighting {
 // Who writes the virtual texture's feedback (page ids at 1/N of the view resolution, DESIGN §5).
 enum class FeedbackMode : uint8_t {
   None,          // no feedback (a second view of the same VT, or measuring the sampling alone)
-  MainPass,      // the colour pass writes it for one rotating pixel per N x N block (default)
+  MainPass,      // the colour pass stores it (storage buffer) for one rotating pixel per N x N block
+  Attachment,    // the colour pass writes every pixel's page on a second colour attachment
+                 // (R32G32_UINT) and a copy takes the same rotating pixel per block into the
+                 // feedback buffer: the same texels as MainPass without a store in the shader
+                 // (default: nearly free on lavapipe, where the store cost ~60 % of the pass)
   SeparatePass,  // a separate pass at 1/N resolution with its own depth writes every texel;
                  // its viewport is shifted so texel (x, y) sees the scene point of the same
                  // rotating full-resolution pixel MainPass would report (terrain_types.h)
 };
+
+// "none", "main", "attachment", "separate" (the CLI's names); nullopt for anything else.
+std::optional<FeedbackMode> feedback_mode_from_string(std::string_view name);
+const char* feedback_mode_name(FeedbackMode mode);
 
 // How a VT sample filters between mips (vt_lod.glsl, tvt_filtered_lod).
 enum class VtMipFilter : uint8_t {
@@ -67,7 +75,7 @@ struct TerrainVtInputs {
   const vk::Image* cache = nullptr;     // physical cache (layout GENERAL)
   VkSampler sampler = VK_NULL_HANDLE;
   uint32_t feedback_divisor = 8;        // N: one feedback texel per N x N pixels
-  FeedbackMode feedback = FeedbackMode::MainPass;
+  FeedbackMode feedback = FeedbackMode::Attachment;
   // Anisotropic filtering: up to this many bilinear taps per mip along the footprint's major
   // axis, the LOD from major axis / taps (vt_lod.glsl). 1: isotropic trilinear. At most the
   // page border B, so the taps stay inside the looked-up slot (docs/renderer.md). Feedback
@@ -169,10 +177,13 @@ class TerrainRenderer {
   vk::GraphicsPipeline feedback_pipeline_;
   vk::DescriptorSet feedback_descriptors_;
   vk::RenderTarget feedback_target_;
+  // FeedbackMode::Attachment: this frame's copy regions (feedback texel <- rotating pixel).
+  std::vector<VkBufferImageCopy> feedback_regions_;
 
   void draw_chunks(VkCommandBuffer cmd, const vk::GraphicsPipeline& pipeline, const vk::DescriptorSet& set,
                    const std::vector<ChunkDraw>& draws, const gpu::TvtTerrainFrame& frame);
   void record_feedback_pass(VkCommandBuffer cmd, const std::vector<ChunkDraw>& draws, const gpu::TvtTerrainFrame& frame);
+  void record_feedback_copy(VkCommandBuffer cmd);
   TerrainFrameStats stats_;
 };
 

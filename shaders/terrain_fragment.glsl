@@ -4,7 +4,9 @@
 //                              TVT_TERRAIN_TEXEL_OUTPUT also the VT texel coordinate on a
 //                              second attachment (terrain_texel.frag)
 //   TVT_TERRAIN_VT             the virtual texture (terrain_vt_nofb.frag); plus
-//                              TVT_TERRAIN_VT_FEEDBACK: main-pass feedback (terrain_vt.frag),
+//                              TVT_TERRAIN_VT_FEEDBACK: main-pass feedback stores (terrain_vt.frag),
+//                              TVT_TERRAIN_VT_FEEDBACK_ATTACHMENT: every pixel's page on
+//                              attachment 1 (terrain_vt_attach.frag),
 //                              TVT_TERRAIN_VT_PROBE: a probe attachment (terrain_vt_probe.frag)
 //   TVT_TERRAIN_DIRECT         the composition per pixel (terrain_direct.frag); plus
 //                              TVT_TERRAIN_DIRECT_MATCHED: at the VT's texel centres and mips
@@ -75,6 +77,13 @@ layout(std430, set = 0, binding = TVT_BIND_TERRAIN_FEEDBACK) writeonly buffer Fe
 layout(std140, set = 0, binding = TVT_BIND_TERRAIN_FEEDBACK_PARAMS) uniform FeedbackParams { TvtFeedbackWrite FB; };
 #endif
 #include "vt_sample.glsl"
+#ifdef TVT_TERRAIN_VT_FEEDBACK_ATTACHMENT
+// R32G32_UINT, cleared to TVT_FEEDBACK_EMPTY_WORD: the page this pixel's LOD wants. A colour
+// output is no side effect: on lavapipe a storage store in the shader, even one executed by
+// 1 pixel in 64, slowed the whole pass by ~60 %; this write costs next to nothing there.
+layout(location = 1) out uvec2 out_feedback;
+uvec2 g_feedback = uvec2(TVT_FEEDBACK_EMPTY_WORD);  // stays empty under an albedo override
+#endif
 layout(constant_id = TVT_TERRAIN_SPEC_MAX_ANISOTROPY) const int k_max_anisotropy = 1;
 layout(constant_id = TVT_TERRAIN_SPEC_FEEDBACK_DIVISOR) const uint k_feedback_divisor = 8u;  // = FB.divisor
 layout(constant_id = TVT_TERRAIN_SPEC_DETAIL_NORMAL) const bool k_detail_normal = true;
@@ -122,6 +131,9 @@ vec4 terrain_albedo(TerrainFragment f) {
     const uvec2 fb = px / k_feedback_divisor;
     if (fb.x < FB.width && fb.y < FB.height) feedback[fb.y * FB.width + fb.x] = vt_feedback_texel(ti, fp.lod);
   }
+#endif
+#ifdef TVT_TERRAIN_VT_FEEDBACK_ATTACHMENT
+  g_feedback = vt_feedback_texel(ti, fp.lod);
 #endif
 #ifdef TVT_TERRAIN_VT_PROBE
   g_probe = vt_probe(ti, tf, fp.lod);
@@ -276,6 +288,9 @@ void main() {
   out_color = vec4(c, 1.0);
 #ifdef TVT_TERRAIN_VT_PROBE
   out_probe = g_probe;
+#endif
+#ifdef TVT_TERRAIN_VT_FEEDBACK_ATTACHMENT
+  out_feedback = g_feedback;
 #endif
 #ifdef TVT_TERRAIN_TEXEL_OUTPUT
   const vec2 whole = floor(v_local_texel);

@@ -8,6 +8,7 @@
 #include <numbers>
 
 #include "support/terrain_probe.h"
+#include "compose/image_diff.h"
 #include "compose/packed_scene.h"
 #include "compose/scene.h"
 #include "render/flythrough.h"
@@ -273,6 +274,48 @@ TEST_F(TerrainSamplingTest, SeparateFeedbackPassReportsThePagesTheMainPassReport
   const VtConvergence c = driver.value()->converge(path.camera_at(path.start_time() + 4.0), 60);
   EXPECT_TRUE(c.converged) << c.frames << " frames";
   EXPECT_GT(v.stats().residency.resident, 20u);
+}
+
+// Attachment feedback (the default) reports exactly what main-pass stores report: the same
+// rotating pixel of every N x N block, the same LOD, copied from the second attachment instead
+// of stored by the shader. A size that N does not divide leaves blocks whose rotating pixel
+// lies beyond the image: those texels stay empty in both.
+TEST_F(TerrainSamplingTest, AttachmentFeedbackEqualsMainPassStoresTexelForTexel) {
+  const SceneAssets& assets = default_assets();
+  auto packed = pack_scene(assets, options_for(Method::BlendMap));
+  ASSERT_TRUE(packed.ok());
+  VtSystemOptions vo;
+  vo.cache_slots = 256;
+  vo.page_budget = 64;
+  auto vt = VtSystem::create(ctx(), packed.value(), vo);
+  ASSERT_TRUE(vt.ok());
+  VtSystem& v = *vt.value();
+  TerrainRendererOptions o;
+  o.width = 251;  // 32 blocks of 8, the last one 3 pixels wide
+  o.height = 139;
+  ASSERT_EQ(TerrainVtInputs{}.feedback, FeedbackMode::Attachment);
+  o.vt = vt_inputs(v, 8, FeedbackMode::Attachment);
+  auto attachment = TerrainRenderer::create(ctx(), assets, o);
+  ASSERT_TRUE(attachment.ok()) << attachment.error().message;
+  o.vt = vt_inputs(v, 8, FeedbackMode::MainPass);
+  auto stores = TerrainRenderer::create(ctx(), assets, o);
+  ASSERT_TRUE(stores.ok());
+  ASSERT_EQ(attachment.value()->feedback_width(), 32u);
+
+  const CameraPath path = flythrough_path(assets, stores.value()->mesh());
+  size_t terrain = 0, empty_edge = 0;
+  for (int frame = 0; frame < 64; ++frame) {  // every rotation offset of the 8 x 8 block
+    const Camera cam = path.camera_at(path.start_time() + 0.25 * frame);
+    const ImageRGBA8 ia = attachment.value()->render(cam), ib = stores.value()->render(cam);
+    const auto a = read_buffer(ctx(), attachment.value()->feedback_buffer());
+    const auto b = read_buffer(ctx(), stores.value()->feedback_buffer());
+    ASSERT_EQ(a, b) << "frame " << frame;
+    ASSERT_EQ(compare_images(ia, ib).max_abs, 0u) << "frame " << frame;  // the colour is untouched
+    for (size_t k = 0; k < a.size(); k += 2) terrain += a[k] != gpu::TVT_FEEDBACK_EMPTY_WORD;
+    empty_edge += a[2 * (15 * 32 + 31)] == gpu::TVT_FEEDBACK_EMPTY_WORD;  // row 15 (terrain), last column
+  }
+  EXPECT_GT(terrain, 64u * 32u * 18u / 2u);
+  EXPECT_EQ(empty_edge, 40u);  // the last column's rotating pixel is inside for 3 of the 8 x offsets
 }
 
 // V = 2^24 (0.5 mm texels), camera 1 m above the far corner looking along the edge at a grazing
