@@ -87,6 +87,7 @@ TEST_F(RenderCli, BadFlagsExitWithTheirNameAndWriteNothing) {
       {"--source stored --store " + missing, "missing.tvt"},
       {"--store " + missing, "--store"},
       {"--feedback sideways", "--feedback"},
+      {"--feedback none", "--feedback"},
       {"--vt-filter nearest", "--vt-filter"},
       {"--loader-threads 0", "--loader-threads"},
       {"--scene " + path("bad.json"), "log2_size"},
