@@ -27,7 +27,8 @@ RenderTarget::RenderTarget(Context& context, const RenderTargetDesc& desc) : con
   for (const VkFormat f : desc.color_formats) {
     (void)texel_bytes(f);  // readable back
     colors_.push_back(context.create_image(f, desc.width, desc.height, 1,
-                                           VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT));
+                                           VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT |
+                                               desc.extra_color_usage));
   }
   if (desc.depth) {
     depth_ = context.create_image(kDepthFormat, desc.width, desc.height, 1, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT);

@@ -22,6 +22,7 @@ struct RenderTargetDesc {
   uint32_t height = 0;  // pixels
   std::vector<VkFormat> color_formats = {VK_FORMAT_R8G8B8A8_UNORM};  // location order
   bool depth = true;    // D32_SFLOAT
+  VkImageUsageFlags extra_color_usage = 0;  // e.g. STORAGE, for a compute pass reading attachments
 };
 
 class RenderTarget {

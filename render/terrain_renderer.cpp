@@ -101,7 +101,10 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
   td.color_formats = {VK_FORMAT_R8G8B8A8_UNORM};
   if (options.texel_output) td.color_formats.push_back(VK_FORMAT_R32G32B32A32_UINT);
   if (probe) td.color_formats.push_back(VK_FORMAT_R32G32B32A32_SFLOAT);
-  if (feedback == FeedbackMode::Attachment) td.color_formats.push_back(VK_FORMAT_R32G32_UINT);
+  if (feedback == FeedbackMode::Attachment) {
+    td.color_formats.push_back(VK_FORMAT_R32G32_UINT);
+    td.extra_color_usage = VK_IMAGE_USAGE_STORAGE_BIT;  // read by feedback_pick.comp
+  }
   td.depth = true;
   r->target_ = vk::RenderTarget(context, td);
 
@@ -208,6 +211,16 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
       r->descriptors_.write_buffer(gpu::TVT_BIND_TERRAIN_FEEDBACK_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER,
                                    r->feedback_params_buffer_);
     }
+    if (feedback == FeedbackMode::Attachment) {
+      const vk::ComputeBinding pick_bindings[] = {{gpu::TVT_BIND_FEEDBACK_PICK_IMAGE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
+                                                  {gpu::TVT_BIND_FEEDBACK_PICK_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}};
+      r->pick_pipeline_ =
+          context.create_compute_pipeline(shaders::feedback_pick_comp(), pick_bindings, sizeof(gpu::TvtFeedbackWrite));
+      r->pick_descriptors_ = context.allocate_descriptor_set(r->pick_pipeline_);
+      r->pick_descriptors_.write_storage_image(gpu::TVT_BIND_FEEDBACK_PICK_IMAGE, r->target_.color(1));
+      r->pick_descriptors_.write_buffer(gpu::TVT_BIND_FEEDBACK_PICK_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
+                                        r->feedback_buffer_);
+    }
     if (feedback == FeedbackMode::SeparatePass) {
       // Same vertex stage, draws and depth test at 1/N resolution; colour = feedback texel.
       vk::RenderTargetDesc fd;
@@ -285,8 +298,7 @@ void TerrainRenderer::record(VkCommandBuffer cmd, const Camera& camera) {
     feedback_.offset_x = (i * 7u) % n;  // a scrambled walk over the block
     feedback_.offset_y = (i / n + i * 3u) % n;
     vkCmdUpdateBuffer(cmd, feedback_params_buffer_.handle(), 0, sizeof(feedback_), &feedback_);
-    if (feedback == FeedbackMode::MainPass || feedback == FeedbackMode::Attachment)
-      vkCmdFillBuffer(cmd, feedback_buffer_.handle(), 0, VK_WHOLE_SIZE, 0xffffffffu);
+    if (feedback == FeedbackMode::MainPass) vkCmdFillBuffer(cmd, feedback_buffer_.handle(), 0, VK_WHOLE_SIZE, 0xffffffffu);
   }
   ++frames_recorded_;
   vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
@@ -316,11 +328,13 @@ void TerrainRenderer::record(VkCommandBuffer cmd, const Camera& camera) {
   draw_chunks(cmd, pipeline_, descriptors_, draws, frame);
   target_.end(cmd);
   if (feedback == FeedbackMode::SeparatePass) record_feedback_pass(cmd, draws, frame);
-  if (feedback == FeedbackMode::Attachment) record_feedback_copy(cmd);
+  if (feedback == FeedbackMode::Attachment) record_feedback_pick(cmd);
   if (feedback != FeedbackMode::None) {
-    // Feedback texels (fragment stores or the separate pass's copy) are read by the
-    // compactor's compute passes.
-    vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+    // Feedback texels (fragment stores, the pick pass or the separate pass's copy) are read by
+    // the compactor's compute passes.
+    vk::Context::memory_barrier(cmd,
+                                VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT |
+                                    VK_PIPELINE_STAGE_TRANSFER_BIT,
                                 VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT,
                                 VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
                                 VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_TRANSFER_READ_BIT);
@@ -379,27 +393,19 @@ void TerrainRenderer::record_feedback_pass(VkCommandBuffer cmd, const std::vecto
                          feedback_buffer_.handle(), 1, &region);
 }
 
-// FeedbackMode::Attachment: one copy region per feedback texel from its rotating pixel
-// (x N + offset_x, y N + offset_y) of attachment 1; texels whose pixel lies beyond the image
-// keep the fill's empty words. The buffer fill at the frame's start happened before the pass.
-void TerrainRenderer::record_feedback_copy(VkCommandBuffer cmd) {
-  const uint32_t n = feedback_.divisor;
-  feedback_regions_.clear();
-  for (uint32_t y = 0; y < feedback_.height; ++y)
-    for (uint32_t x = 0; x < feedback_.width; ++x) {
-      const uint32_t px = x * n + feedback_.offset_x, py = y * n + feedback_.offset_y;
-      if (px >= options_.width || py >= options_.height) continue;
-      VkBufferImageCopy& r = feedback_regions_.emplace_back();
-      r.bufferOffset = (VkDeviceSize(y) * feedback_.width + x) * 8;
-      r.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
-      r.imageOffset = {int32_t(px), int32_t(py), 0};
-      r.imageExtent = {1, 1, 1};
-    }
-  // The fill (transfer) before the pass and this copy (transfer) write the same buffer.
-  vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
-                              VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT);
-  vkCmdCopyImageToBuffer(cmd, target_.color(1).handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, feedback_buffer_.handle(),
-                         uint32_t(feedback_regions_.size()), feedback_regions_.data());
+// FeedbackMode::Attachment: feedback_pick.comp copies the rotating pixel of every N x N block
+// from attachment 1 into the feedback buffer (every texel written). The attachment goes to
+// GENERAL for the compute pass and back, so end()'s layout contract (TRANSFER_SRC) holds.
+void TerrainRenderer::record_feedback_pick(VkCommandBuffer cmd) {
+  const vk::Image& image = target_.color(1);
+  vk::Context::transition(cmd, image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL);
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pick_pipeline_.handle());
+  const VkDescriptorSet set = pick_descriptors_.handle();
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pick_pipeline_.layout(), 0, 1, &set, 0, nullptr);
+  vkCmdPushConstants(cmd, pick_pipeline_.layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(feedback_), &feedback_);
+  const uint32_t texels = feedback_.width * feedback_.height;
+  vkCmdDispatch(cmd, (texels + gpu::TVT_FEEDBACK_GROUP - 1) / gpu::TVT_FEEDBACK_GROUP, 1, 1);
+  vk::Context::transition(cmd, image, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
 }
 
 ImageRGBA8 TerrainRenderer::render(const Camera& camera) {

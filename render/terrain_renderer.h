@@ -44,9 +44,9 @@ enum class FeedbackMode : uint8_t {
   None,          // no feedback (a second view of the same VT, or measuring the sampling alone)
   MainPass,      // the colour pass stores it (storage buffer) for one rotating pixel per N x N block
   Attachment,    // the colour pass writes every pixel's page on a second colour attachment
-                 // (R32G32_UINT) and a copy takes the same rotating pixel per block into the
-                 // feedback buffer: the same texels as MainPass without a store in the shader
-                 // (default: nearly free on lavapipe, where the store cost ~60 % of the pass)
+                 // (R32G32_UINT) and a compute pass (feedback_pick.comp) takes the same rotating
+                 // pixel per block into the feedback buffer: MainPass's texels without a store
+                 // in the shader (default: nearly free on lavapipe, where the store doubled the pass)
   SeparatePass,  // a separate pass at 1/N resolution with its own depth writes every texel;
                  // its viewport is shifted so texel (x, y) sees the scene point of the same
                  // rotating full-resolution pixel MainPass would report (terrain_types.h)
@@ -141,7 +141,8 @@ class TerrainRenderer {
   // Records the whole pass into the render target (begin, draws, end): the colour attachments
   // end in TRANSFER_SRC_OPTIMAL. Chunk selection (culling, LOD) runs on the CPU here. With
   // FeedbackMode::SeparatePass the low-resolution feedback pass and its copy into
-  // feedback_buffer() follow; with any feedback, a barrier makes the buffer readable by compute.
+  // feedback_buffer() follow, with Attachment the compute pick into it; with any feedback, a
+  // barrier makes the buffer readable by compute.
   void record(VkCommandBuffer cmd, const Camera& camera);
   // Blocking convenience: record + submit + wait + read back attachment 0.
   ImageRGBA8 render(const Camera& camera);
@@ -177,13 +178,14 @@ class TerrainRenderer {
   vk::GraphicsPipeline feedback_pipeline_;
   vk::DescriptorSet feedback_descriptors_;
   vk::RenderTarget feedback_target_;
-  // FeedbackMode::Attachment: this frame's copy regions (feedback texel <- rotating pixel).
-  std::vector<VkBufferImageCopy> feedback_regions_;
+  // FeedbackMode::Attachment: the pick pass (feedback_pick.comp).
+  vk::ComputePipeline pick_pipeline_;
+  vk::DescriptorSet pick_descriptors_;
 
   void draw_chunks(VkCommandBuffer cmd, const vk::GraphicsPipeline& pipeline, const vk::DescriptorSet& set,
                    const std::vector<ChunkDraw>& draws, const gpu::TvtTerrainFrame& frame);
   void record_feedback_pass(VkCommandBuffer cmd, const std::vector<ChunkDraw>& draws, const gpu::TvtTerrainFrame& frame);
-  void record_feedback_copy(VkCommandBuffer cmd);
+  void record_feedback_pick(VkCommandBuffer cmd);
   TerrainFrameStats stats_;
 };
 

@@ -16,6 +16,9 @@ TVT_CONST uint TVT_BIND_TERRAIN_VT_ENTRIES = 3u;       // storage uint[]: the pa
 TVT_CONST uint TVT_BIND_TERRAIN_VT_CACHE = 4u;         // sampler2DArray: the physical cache
 TVT_CONST uint TVT_BIND_TERRAIN_FEEDBACK = 5u;         // storage uvec2[]: feedback texels (feedback_types.h)
 TVT_CONST uint TVT_BIND_TERRAIN_FEEDBACK_PARAMS = 6u;  // uniform TvtFeedbackWrite
+// FeedbackMode::Attachment's pick pass (feedback_pick.comp; push constant TvtFeedbackWrite):
+TVT_CONST uint TVT_BIND_FEEDBACK_PICK_IMAGE = 0u;   // uimage2DArray rg32ui: the colour pass's attachment 1 (GENERAL)
+TVT_CONST uint TVT_BIND_FEEDBACK_PICK_TEXELS = 1u;  // storage uvec2[]: the feedback texels
 // Direct-splat mode (terrain_direct.frag: the composition per pixel, as the papers did) adds,
 // fragment stage, compose_sample.glsl's inputs:
 TVT_CONST uint TVT_BIND_TERRAIN_COMPOSE_PARAMS = 7u;     // storage TvtComposeParams
