@@ -26,6 +26,7 @@
 #include <cmath>
 #include <cstring>
 #include <optional>
+#include <ostream>
 #include <random>
 
 #include "compose/packed_scene.h"
@@ -117,6 +118,9 @@ struct Place {
   const char* name;
   uint32_t camera_x, camera_y;  // level-0 texels
 };
+// Test names and listings show the place, not the struct's bytes (which hold a pointer and
+// changed the CTest names from build to build).
+void PrintTo(const Place& p, std::ostream* os) { *os << p.name << " (" << p.camera_x << ", " << p.camera_y << ")"; }
 
 class GpuCoordVt : public GpuTest, public ::testing::WithParamInterface<Place> {};
 

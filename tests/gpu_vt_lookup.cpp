@@ -6,6 +6,8 @@
 
 #include <cmath>
 #include <cstring>
+#include <ostream>
+#include <string>
 #include <random>
 
 #include "render/vt_info.h"
@@ -22,6 +24,9 @@ struct Case {
   uint32_t window;
   uint32_t centre_x, centre_y;
 };
+void PrintTo(const Case& c, std::ostream* os) {
+  *os << "V 2^" << c.log2_vt << ", window " << c.window << ", centre (" << c.centre_x << ", " << c.centre_y << ")";
+}
 
 class GpuVtLookup : public GpuTest, public ::testing::WithParamInterface<Case> {};
 
@@ -116,4 +121,9 @@ TEST_P(GpuVtLookup, MatchesThePageTable) {
 
 INSTANTIATE_TEST_SUITE_P(Sizes, GpuVtLookup,
                          ::testing::Values(Case{16, 32, 30000, 20000}, Case{24, 32, 100, 50},
-                                           Case{24, 32, (1u << 24) - 3, (1u << 24) - 7}, Case{24, 8, 1u << 23, 77}));
+                                           Case{24, 32, (1u << 24) - 3, (1u << 24) - 7}, Case{24, 8, 1u << 23, 77}),
+                         [](const auto& p) {
+                           const Case& c = p.param;
+                           return "V" + std::to_string(c.log2_vt) + "Window" + std::to_string(c.window) + "At" +
+                                  std::to_string(c.centre_x) + "x" + std::to_string(c.centre_y);
+                         });
