@@ -354,7 +354,7 @@ int run_bench_frame(const BenchFrameArgs& a) {
                 median(r.psnr_bilinear_trilinear), median(r.psnr_trilinear_direct), median(r.psnr_bilinear_direct));
   }
   std::printf("\n\nFeedback cost per frame (same poses, over VT noFB): the main pass writing a second attachment (and\n"
-              "the copy of the rotating pixels), the main pass storing to a buffer, a separate 1/%u pass; plus compaction:\n",
+              "the compute pick of the rotating pixels), the main pass storing to a buffer, a separate 1/%u pass; plus compaction:\n",
               a.feedback_divisor);
   for (size_t i = 0; i < methods.size(); ++i) {
     const StaticResult& r = statics[i];
