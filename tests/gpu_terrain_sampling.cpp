@@ -80,6 +80,23 @@ TerrainVtInputs vt_inputs(const VtSystem& v, uint32_t divisor, FeedbackMode mode
   return i;
 }
 
+// The feedback tests' VT: the default scene in blend-map form, 256 cache pages, 64 per frame.
+struct FeedbackVt {
+  PackedScene packed;
+  std::unique_ptr<VtSystem> vt;  // after `packed`: destroyed first
+};
+void make_feedback_vt(vk::Context& g, FeedbackVt& out) {
+  auto packed = pack_scene(default_assets(), options_for(Method::BlendMap));
+  ASSERT_TRUE(packed.ok());
+  out.packed = std::move(packed.value());
+  VtSystemOptions vo;
+  vo.cache_slots = 256;
+  vo.page_budget = 64;
+  auto vt = VtSystem::create(g, out.packed, vo);
+  ASSERT_TRUE(vt.ok()) << vt.error().message;
+  out.vt = std::move(vt.value());
+}
+
 using TerrainSamplingTest = GpuTest;
 
 TEST_F(TerrainSamplingTest, PlainTextureLevelZeroIsTheComposedPagesAndTheChainIsBoxFiltered) {
@@ -207,14 +224,9 @@ TEST_F(TerrainSamplingTest, AnisotropicSamplingReadsFinerMipsAlongGrazingViewsAn
 // derivatives span 2N pixels instead of 2.
 TEST_F(TerrainSamplingTest, SeparateFeedbackPassReportsThePagesTheMainPassReports) {
   const SceneAssets& assets = default_assets();
-  auto packed = pack_scene(assets, options_for(Method::BlendMap));
-  ASSERT_TRUE(packed.ok());
-  VtSystemOptions vo;
-  vo.cache_slots = 256;
-  vo.page_budget = 64;
-  auto vt = VtSystem::create(ctx(), packed.value(), vo);
-  ASSERT_TRUE(vt.ok());
-  VtSystem& v = *vt.value();
+  FeedbackVt fv;
+  ASSERT_NO_FATAL_FAILURE(make_feedback_vt(ctx(), fv));
+  VtSystem& v = *fv.vt;
   TerrainRendererOptions o;
   o.width = 320;
   o.height = 180;
@@ -282,14 +294,9 @@ TEST_F(TerrainSamplingTest, SeparateFeedbackPassReportsThePagesTheMainPassReport
 // lies beyond the image: those texels stay empty in both.
 TEST_F(TerrainSamplingTest, AttachmentFeedbackEqualsMainPassStoresTexelForTexel) {
   const SceneAssets& assets = default_assets();
-  auto packed = pack_scene(assets, options_for(Method::BlendMap));
-  ASSERT_TRUE(packed.ok());
-  VtSystemOptions vo;
-  vo.cache_slots = 256;
-  vo.page_budget = 64;
-  auto vt = VtSystem::create(ctx(), packed.value(), vo);
-  ASSERT_TRUE(vt.ok());
-  VtSystem& v = *vt.value();
+  FeedbackVt fv;
+  ASSERT_NO_FATAL_FAILURE(make_feedback_vt(ctx(), fv));
+  VtSystem& v = *fv.vt;
   TerrainRendererOptions o;
   o.width = 251;  // 32 blocks of 8, the last one 3 pixels wide
   o.height = 139;
