@@ -149,7 +149,7 @@ int run_render(const RenderArgs& a) {
   std::printf("terravt render: %s, V = 2^%u, %ux%u, %u frames, method %s, source %s, cache %u pages, budget %u/frame, "
               "%s filter, device %s\n",
               assets->desc.source_path.c_str(), assets->desc.vt.log2_size, a.width, a.height, frames, a.method.c_str(),
-              a.source.c_str(), a.cache_slots, a.page_budget, a.vt_filter.c_str(), g.device_name().c_str());
+              a.source.c_str(), a.cache_slots, a.page_budget, mip_filter_name(*mip_filter), g.device_name().c_str());
   std::printf("camera: %s\n", camera->describe().c_str());
   uint32_t written = 0;
   std::string write_error;
