@@ -79,8 +79,8 @@ layout(std140, set = 0, binding = TVT_BIND_TERRAIN_FEEDBACK_PARAMS) uniform Feed
 #include "vt_sample.glsl"
 #ifdef TVT_TERRAIN_VT_FEEDBACK_ATTACHMENT
 // R32G32_UINT, cleared to TVT_FEEDBACK_EMPTY_WORD: the page this pixel's LOD wants. A colour
-// output is no side effect: on lavapipe a storage store in the shader, even one executed by
-// 1 pixel in 64, about doubled the cost of the whole pass; this write costs next to nothing.
+// output is not a storage write: on lavapipe a pipeline writing a storage buffer makes the
+// driver flush its scene on every draw, which about doubled the cost of the whole pass.
 layout(location = 1) out uvec2 out_feedback;
 uvec2 g_feedback = uvec2(TVT_FEEDBACK_EMPTY_WORD);  // stays empty under an albedo override
 #endif
