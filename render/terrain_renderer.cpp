@@ -126,7 +126,7 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
     pd.fragment_constants = {options.vt->max_anisotropy, options.vt->feedback_divisor,
                              options.lighting.detail_relief_m > 0.0 ? 1u : 0u,
                              options.vt->mip_filter == VtMipFilter::Trilinear ? 1u : 0u};
-  else if (options.direct && options.direct->matched_lod)
+  else if (options.direct && options.direct->matched_lod)  // only _TRILINEAR is declared there
     pd.fragment_constants = {1u, 8u, 1u, options.direct->mip_filter == VtMipFilter::Trilinear ? 1u : 0u};
   pd.vertex_bindings = {{0, sizeof(TerrainVertex), VK_VERTEX_INPUT_RATE_VERTEX}};
   pd.vertex_attributes = {{gpu::TVT_TERRAIN_ATTR_GRID, 0, VK_FORMAT_R16G16B16A16_UINT, 0}};
@@ -170,8 +170,9 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
                                                   VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT |
                                                       VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
                                                   false);
-      r->feedback_params_buffer_ = context.create_buffer(
-          sizeof(gpu::TvtFeedbackWrite), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT, false);
+      if (feedback != FeedbackMode::Attachment)  // the pick pass takes them as push constants
+        r->feedback_params_buffer_ = context.create_buffer(
+            sizeof(gpu::TvtFeedbackWrite), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT, false);
     }
   }
   pd.push_constant_bytes = sizeof(gpu::TvtTerrainDraw);
@@ -293,11 +294,12 @@ void TerrainRenderer::record(VkCommandBuffer cmd, const Camera& camera) {
   vkCmdUpdateBuffer(cmd, frame_buffer_.handle(), 0, sizeof(frame), &frame);
   if (feedback != FeedbackMode::None) {
     // This frame's rotating pixel of every N x N block; main-pass feedback starts from all
-    // texels empty (the separate pass clears its own target).
+    // texels empty (the separate pass clears its own target, the pick writes every texel).
     const uint32_t n = feedback_.divisor, i = uint32_t(frames_recorded_ % (uint64_t(n) * n));
     feedback_.offset_x = (i * 7u) % n;  // a scrambled walk over the block
     feedback_.offset_y = (i / n + i * 3u) % n;
-    vkCmdUpdateBuffer(cmd, feedback_params_buffer_.handle(), 0, sizeof(feedback_), &feedback_);
+    if (feedback != FeedbackMode::Attachment)
+      vkCmdUpdateBuffer(cmd, feedback_params_buffer_.handle(), 0, sizeof(feedback_), &feedback_);
     if (feedback == FeedbackMode::MainPass) vkCmdFillBuffer(cmd, feedback_buffer_.handle(), 0, VK_WHOLE_SIZE, 0xffffffffu);
   }
   ++frames_recorded_;
