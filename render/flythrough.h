@@ -29,7 +29,7 @@ struct FlythroughOptions {
   uint32_t feedback_divisor = 8;        // N
   FeedbackMode feedback_mode = FeedbackMode::Attachment;  // who writes feedback (not None)
   uint32_t max_anisotropy = 1;          // VT taps per mip along the footprint (1: isotropic; <= B)
-  VtMipFilter mip_filter = VtMipFilter::Trilinear;  // between mips: blend two, or nearest only
+  VtMipFilter mip_filter = VtMipFilter::Trilinear;  // between mips: trilinear, brilinear band or nearest only
   VtSystemOptions vt;
   int debug_view = 0;                   // TVT_VT_VIEW_*: 1 colours every texel by its data mip
   TerrainLighting lighting;             // sun, ambient, sky/fog, detail relief

@@ -2,6 +2,8 @@
 #include "render/terrain_renderer.h"
 
 #include <algorithm>
+#include <bit>
+#include <charconv>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -45,11 +47,25 @@ const char* feedback_mode_name(FeedbackMode mode) {
 std::optional<VtMipFilter> mip_filter_from_string(std::string_view name) {
   if (name == "trilinear") return VtMipFilter::Trilinear;
   if (name == "bilinear") return VtMipFilter::Bilinear;
-  return std::nullopt;
+  constexpr std::string_view kBrilinear = "brilinear";
+  if (!name.starts_with(kBrilinear)) return std::nullopt;
+  name.remove_prefix(kBrilinear.size());
+  if (name.empty()) return VtMipFilter{kDefaultBrilinearBand};
+  if (name.front() != ':' || name.size() == 1) return std::nullopt;
+  name.remove_prefix(1);
+  float band = 0.f;
+  const auto [end, ec] = std::from_chars(name.data(), name.data() + name.size(), band);
+  // The comparisons also reject NaN.
+  if (ec != std::errc() || end != name.data() + name.size() || !(band >= 0.f && band <= 1.f)) return std::nullopt;
+  return VtMipFilter{band};
 }
 
-const char* mip_filter_name(VtMipFilter filter) {
-  return filter == VtMipFilter::Trilinear ? "trilinear" : "bilinear";
+std::string mip_filter_name(VtMipFilter filter) {
+  if (filter == VtMipFilter::Trilinear) return "trilinear";
+  if (filter == VtMipFilter::Bilinear) return "bilinear";
+  char digits[32];
+  const auto [end, ec] = std::to_chars(digits, digits + sizeof digits, filter.band);
+  return "brilinear:" + std::string(digits, ec == std::errc() ? end : digits);
 }
 
 Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& context, const SceneAssets& assets,
@@ -121,13 +137,13 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
     pd.fragment_spirv = shaders::terrain_plain_frag();
   else
     pd.fragment_spirv = options.texel_output ? shaders::terrain_texel_frag() : shaders::terrain_frag();
-  // TVT_TERRAIN_SPEC_MAX_ANISOTROPY, _FEEDBACK_DIVISOR, _DETAIL_NORMAL, _TRILINEAR
+  // TVT_TERRAIN_SPEC_MAX_ANISOTROPY, _FEEDBACK_DIVISOR, _DETAIL_NORMAL, _MIP_BAND (a float)
   if (options.vt)
     pd.fragment_constants = {options.vt->max_anisotropy, options.vt->feedback_divisor,
                              options.lighting.detail_relief_m > 0.0 ? 1u : 0u,
-                             options.vt->mip_filter == VtMipFilter::Trilinear ? 1u : 0u};
-  else if (options.direct && options.direct->matched_lod)  // only _TRILINEAR is declared there
-    pd.fragment_constants = {1u, 8u, 1u, options.direct->mip_filter == VtMipFilter::Trilinear ? 1u : 0u};
+                             std::bit_cast<uint32_t>(options.vt->mip_filter.band)};
+  else if (options.direct && options.direct->matched_lod)  // only _MIP_BAND is declared there
+    pd.fragment_constants = {1u, 8u, 1u, std::bit_cast<uint32_t>(options.direct->mip_filter.band)};
   pd.vertex_bindings = {{0, sizeof(TerrainVertex), VK_VERTEX_INPUT_RATE_VERTEX}};
   pd.vertex_attributes = {{gpu::TVT_TERRAIN_ATTR_GRID, 0, VK_FORMAT_R16G16B16A16_UINT, 0}};
   pd.bindings = {
@@ -138,6 +154,9 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
   const VkShaderStageFlags fs = VK_SHADER_STAGE_FRAGMENT_BIT;
   if (options.direct) {
     if (!options.direct->composer) return make_error("terrain renderer: direct inputs need a composer");
+    if (!(options.direct->mip_filter.band >= 0.f && options.direct->mip_filter.band <= 1.f))
+      return make_error("terrain renderer: direct.mip_filter.band must be in [0, 1], got " +
+                        std::to_string(options.direct->mip_filter.band));
     pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_COMPOSE_PARAMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, fs});
     pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_MATERIAL_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, fs});
     pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_META_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, fs});
@@ -155,6 +174,8 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
     if (v.max_anisotropy < 1 || v.max_anisotropy > max_aniso)
       return make_error("terrain renderer: vt.max_anisotropy must be between 1 and the page border B = " +
                         std::to_string(max_aniso));
+    if (!(v.mip_filter.band >= 0.f && v.mip_filter.band <= 1.f))
+      return make_error("terrain renderer: vt.mip_filter.band must be in [0, 1], got " + std::to_string(v.mip_filter.band));
     pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_VT_INFO, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, fs});
     pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_VT_ENTRIES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, fs});
     pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_VT_CACHE, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, fs});

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <string>
 #include <string_view>
 
 #include <glm/glm.hpp>
@@ -56,15 +57,28 @@ enum class FeedbackMode : uint8_t {
 std::optional<FeedbackMode> feedback_mode_from_string(std::string_view name);
 const char* feedback_mode_name(FeedbackMode mode);
 
-// How a VT sample filters between mips (vt_lod.glsl, tvt_filtered_lod).
-enum class VtMipFilter : uint8_t {
-  Trilinear,  // the two mips around the LOD, blended: two page lookups and fetches per sample
-  Bilinear,   // the nearest mip only (GL_LINEAR_MIPMAP_NEAREST): one lookup, visible mip bands;
-              // feedback asks for that mip, so no finer page is produced than is sampled
+// How a VT sample filters between mips (vt_lod.glsl, tvt_filtered_lod): the two mips around
+// the LOD are blended only while the LOD's fraction lies within band / 2 of one half; outside
+// that band the nearer mip alone is read, with one page lookup and fetch, and feedback asks for
+// that mip only (nothing finer is produced than is sampled). The blend weight is continuous:
+// it ramps from 0 to 1 across the band.
+//   band 1        trilinear: blends everywhere, two lookups and fetches per sample
+//   band 0        bilinear: the nearest mip (GL_LINEAR_MIPMAP_NEAREST), visible mip bands
+//   0 < band < 1  "brilinear", the trilinear optimisation GPU drivers apply: a narrower blend,
+//                 two lookups for about `band` of the samples
+struct VtMipFilter {
+  float band = 1.f;  // in [0, 1]
+  static const VtMipFilter Trilinear, Bilinear;
+  friend bool operator==(const VtMipFilter&, const VtMipFilter&) = default;
 };
-// "trilinear" / "bilinear"; nullopt for anything else.
+inline constexpr VtMipFilter VtMipFilter::Trilinear{1.f};
+inline constexpr VtMipFilter VtMipFilter::Bilinear{0.f};
+inline constexpr float kDefaultBrilinearBand = 0.25f;
+// "trilinear", "bilinear", "brilinear" (band kDefaultBrilinearBand) or "brilinear:W" with W a
+// number in [0, 1]; nullopt for anything else (including NaN).
 std::optional<VtMipFilter> mip_filter_from_string(std::string_view name);
-const char* mip_filter_name(VtMipFilter filter);
+// "trilinear", "bilinear" or "brilinear:W" (shortest text that parses back to the same band).
+std::string mip_filter_name(VtMipFilter filter);
 
 // Virtual-texture mode: albedo comes from the VT (terrain_vt*.frag) and, unless the feedback
 // mode is None, the renderer fills feedback_buffer(). The objects must outlive the renderer

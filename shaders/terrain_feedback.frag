@@ -14,7 +14,7 @@ layout(std430, set = 0, binding = TVT_BIND_TERRAIN_VT_INFO) readonly buffer VtIn
 layout(std140, set = 0, binding = TVT_BIND_TERRAIN_FEEDBACK_PARAMS) uniform FeedbackParams { TvtFeedbackWrite FB; };
 
 layout(constant_id = TVT_TERRAIN_SPEC_MAX_ANISOTROPY) const int k_max_anisotropy = 1;
-layout(constant_id = TVT_TERRAIN_SPEC_TRILINEAR) const bool k_trilinear = true;
+layout(constant_id = TVT_TERRAIN_SPEC_MIP_BAND) const float k_mip_band = 1.0;
 
 layout(location = 0) in vec2 v_local_texel;
 layout(location = 0) out uvec2 out_page;  // feedback texel (feedback_types.h), R32G32_UINT
@@ -26,5 +26,5 @@ void main() {
                                       k_max_anisotropy);
   const vec2 whole = floor(v_local_texel);
   const ivec2 ti = ivec2(int(F.anchor_x), int(F.anchor_y)) + ivec2(whole);  // fits: see terrain_fragment.glsl
-  out_page = tvt_feedback_page(ti, tvt_filtered_lod(fp.lod, k_trilinear), VT.mip_count, VT.log2_vt, VT.log2_page);
+  out_page = tvt_feedback_page(ti, tvt_filtered_lod(fp.lod, k_mip_band), VT.mip_count, VT.log2_vt, VT.log2_page);
 }

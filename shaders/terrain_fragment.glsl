@@ -87,7 +87,7 @@ uvec2 g_feedback = uvec2(TVT_FEEDBACK_EMPTY_WORD);  // stays empty under an albe
 layout(constant_id = TVT_TERRAIN_SPEC_MAX_ANISOTROPY) const int k_max_anisotropy = 1;
 layout(constant_id = TVT_TERRAIN_SPEC_FEEDBACK_DIVISOR) const uint k_feedback_divisor = 8u;  // = FB.divisor
 layout(constant_id = TVT_TERRAIN_SPEC_DETAIL_NORMAL) const bool k_detail_normal = true;
-layout(constant_id = TVT_TERRAIN_SPEC_TRILINEAR) const bool k_trilinear = true;
+layout(constant_id = TVT_TERRAIN_SPEC_MIP_BAND) const float k_mip_band = 1.0;
 
 #ifdef TVT_TERRAIN_VT_PROBE
 // Distance in data-mip texels from the lookup's sample point to the nearest edge of the page
@@ -124,7 +124,7 @@ vec4 terrain_albedo(TerrainFragment f) {
   const ivec2 ti = ivec2(f.anchor_texel) + ivec2(whole);
   const vec2 tf = f.local_texel - whole;
   VtFootprint fp = vt_footprint(f.dtexel_dx, f.dtexel_dy, VT.mip_bias, k_max_anisotropy);
-  fp.lod = tvt_filtered_lod(fp.lod, k_trilinear);  // bilinear: one mip, which feedback then asks for
+  fp.lod = tvt_filtered_lod(fp.lod, k_mip_band);  // outside the band: one mip, which feedback then asks for
 #ifdef TVT_TERRAIN_VT_FEEDBACK
   const uvec2 px = uvec2(gl_FragCoord.xy);
   if (px.x % k_feedback_divisor == FB.offset_x && px.y % k_feedback_divisor == FB.offset_y) {
@@ -151,7 +151,7 @@ layout(std430, set = 0, binding = TVT_BIND_TERRAIN_WEIGHTS) readonly buffer Weig
 
 #ifdef TVT_TERRAIN_DIRECT_MATCHED
 #include "vt_lod.glsl"
-layout(constant_id = TVT_TERRAIN_SPEC_TRILINEAR) const bool k_trilinear = true;
+layout(constant_id = TVT_TERRAIN_SPEC_MIP_BAND) const float k_mip_band = 1.0;
 // Texel i of VT mip `mip` exactly as compose.comp writes it into a page: the composition at
 // the texel's centre with a footprint of 2^mip level-0 texels, edge texels repeated beyond
 // the terrain.
@@ -188,7 +188,7 @@ vec4 terrain_albedo(TerrainFragment f) {
   const i64vec2 ti = f.anchor_texel + i64vec2(whole);
   const vec2 tf = f.local_texel - whole;
   const int mip_count = P.log2_vt - findMSB(uint(P.page_texels)) + 1;
-  const float lod = tvt_filtered_lod(vt_lod_iso(f.dtexel_dx, f.dtexel_dy, 0.0), k_trilinear);
+  const float lod = tvt_filtered_lod(vt_lod_iso(f.dtexel_dx, f.dtexel_dy, 0.0), k_mip_band);
   const float l = clamp(lod, 0.0, float(mip_count - 1));
   const int m0 = int(floor(l));
   const float t = m0 + 1 >= mip_count ? 0.0 : l - float(m0);

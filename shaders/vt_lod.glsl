@@ -43,11 +43,17 @@ VtFootprint vt_footprint(vec2 dx, vec2 dy, float bias, int max_taps) {
   return fp;
 }
 
-// The LOD a sample actually uses under the mip filter: itself (trilinear: the two mips around
-// it, blended) or, bilinear, the nearest mip as GL_LINEAR_MIPMAP_NEAREST picks it (ties go to
-// the finer mip), so one page lookup serves the sample and feedback asks for exactly that page.
-float tvt_filtered_lod(float lod, bool trilinear) {
-  return trilinear ? lod : max(ceil(lod + 0.5) - 1.0, 0.0);
+// The LOD a sample actually uses under the mip filter (render/terrain_renderer.h VtMipFilter):
+// the two mips around `lod` blend only while its fraction f lies within band / 2 of 1/2, the
+// weight of the coarser one ramping linearly from 0 to 1 across the band; elsewhere the result
+// is a whole number, the nearer mip, so one page lookup serves the sample and feedback asks for
+// exactly that page. band >= 1: trilinear (lod itself); band <= 0: the nearest mip as
+// GL_LINEAR_MIPMAP_NEAREST picks it (ties go to the finer mip). lod >= 0 and finite.
+float tvt_filtered_lod(float lod, float band) {
+  if (band >= 1.0) return lod;
+  const float m = floor(lod), f = lod - m;
+  if (!(band > 0.0)) return f > 0.5 ? m + 1.0 : m;
+  return m + clamp((f - 0.5) / band + 0.5, 0.0, 1.0);
 }
 
 // Feedback texel (feedback_types.h) naming the page that a sample at `lod` wants: the finer

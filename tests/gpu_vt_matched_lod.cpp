@@ -5,6 +5,7 @@
 // mips the VT LOD selects and filters them as the VT sampler does.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -227,4 +228,76 @@ TEST_F(GpuVtMatchedLod, BilinearVtEqualsDirectSplattingAndNeedsFewerPages) {
   EXPECT_LE(border.worst, 8);
   EXPECT_LT(against_trilinear.psnr(), 45.0);  // the filter changes the picture: mip bands
   EXPECT_LT(resident, trilinear_resident);
+}
+
+// CPU reference of tvt_filtered_lod (vt_lod.glsl) for 0 < band < 1.
+float brilinear_lod(float lod, float band) {
+  const float m = std::floor(lod), f = lod - m;
+  return m + std::clamp((f - 0.5f) / band + 0.5f, 0.0f, 1.0f);
+}
+
+// Brilinear (--vt-filter brilinear:W): two mips blend only where the LOD's fraction is within
+// W/2 of a half. Per pixel, the LOD the VT samples is the trilinear LOD remapped by that band
+// (checked against a CPU reference of the remap); only pixels inside the band read a second
+// mip; the VT still equals direct splatting at matched LOD; and it sits between the other two
+// filters: closer to the trilinear picture than bilinear is, with resident pages between
+// theirs (outside the band feedback asks for the one mip sampled).
+TEST_F(GpuVtMatchedLod, BrilinearBlendsOnlyInsideItsBandAndSitsBetweenBilinearAndTrilinear) {
+  constexpr float band = kDefaultBrilinearBand;
+  ASSERT_NO_FATAL_FAILURE(converge_and_render(VtMipFilter::Bilinear));
+  const uint32_t bilinear_resident = resident;
+  const ImageRGBA8 bilinear_img = vt_img;
+  ASSERT_NO_FATAL_FAILURE(converge_and_render(VtMipFilter::Trilinear));
+  const uint32_t trilinear_resident = resident;
+  const ImageRGBA8 trilinear_img = vt_img;
+  const std::vector<Probe> trilinear_pr = pr;
+  ASSERT_NO_FATAL_FAILURE(converge_and_render(VtMipFilter{band}));
+  EXPECT_EQ(mip_filter_name(VtMipFilter{band}), "brilinear:0.25");
+
+  const int top = int(assets.desc.vt.mip_count()) - 1;
+  Diff terrain, border, vs_trilinear, bilinear_vs_trilinear;
+  size_t terrain_px = 0, lod_off = 0, mismatched_mips = 0, two_mips = 0, trilinear_two_mips = 0, outside_band = 0;
+  float worst_lod = 0.f;
+  for (uint32_t y = 0; y < h; ++y)
+    for (uint32_t x = 0; x < w; ++x) {
+      const Probe& p = pr[y * w + x];
+      const Probe& t = trilinear_pr[y * w + x];
+      ASSERT_EQ(p.lod < 0.0f, t.lod < 0.0f) << x << "," << y;  // same sky
+      if (p.lod < 0.0f) continue;
+      const uint8_t* a = vt_img.at(int(x), int(y));
+      ++terrain_px;
+      terrain.add(a, direct_img.at(int(x), int(y)));
+      vs_trilinear.add(a, trilinear_img.at(int(x), int(y)));
+      bilinear_vs_trilinear.add(bilinear_img.at(int(x), int(y)), trilinear_img.at(int(x), int(y)));
+      const float d = std::abs(p.lod - brilinear_lod(t.lod, band));
+      worst_lod = std::max(worst_lod, d);
+      lod_off += d > 1e-4f;
+      mismatched_mips += int(p.fine_mip) != std::min(int(std::floor(p.lod)), top);
+      const bool blends = p.coarse_mip != -1.0f;
+      two_mips += blends;
+      trilinear_two_mips += t.coarse_mip != -1.0f;
+      const float f = t.lod - std::floor(t.lod);
+      // Reads a second mip only inside the band (1e-4: rounding at its edges).
+      outside_band += blends && std::abs(f - 0.5f) > band / 2 + 1e-4f;
+      if (p.edge < 1.0f) border.add(a, direct_img.at(int(x), int(y)));
+    }
+  std::fprintf(stderr,
+               "brilinear %.2f: vs matched direct %.2f dB (%zu px), border %zu px worst %d/255; vs trilinear %.2f dB "
+               "(bilinear vs trilinear %.2f dB); two-mip pixels %zu (trilinear %zu); resident pages %u (bilinear %u, "
+               "trilinear %u); worst LOD remap error %g\n",
+               band, terrain.psnr(), terrain_px, border.channels / 3, border.worst, vs_trilinear.psnr(),
+               bilinear_vs_trilinear.psnr(), two_mips, trilinear_two_mips, resident, bilinear_resident,
+               trilinear_resident, double(worst_lod));
+  ASSERT_GT(terrain_px, size_t(w * h / 2));
+  EXPECT_EQ(lod_off, 0u);
+  EXPECT_EQ(mismatched_mips, 0u);
+  EXPECT_EQ(outside_band, 0u);
+  EXPECT_GT(two_mips, 0u);
+  EXPECT_LT(two_mips, trilinear_two_mips / 2);
+  ASSERT_GT(border.channels / 3, 300u);
+  EXPECT_GE(terrain.psnr(), 45.0);
+  EXPECT_LE(border.worst, 8);
+  EXPECT_GT(vs_trilinear.psnr(), bilinear_vs_trilinear.psnr());
+  EXPECT_LE(bilinear_resident, resident);
+  EXPECT_LE(resident, trilinear_resident);
 }

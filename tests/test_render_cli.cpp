@@ -10,6 +10,7 @@
 #include <iterator>
 #include <vector>
 
+#include "render/terrain_renderer.h"
 #include "support/temp_dir.h"
 
 namespace fs = std::filesystem;
@@ -38,11 +39,11 @@ class RenderCli : public ::testing::Test {
 TEST_F(RenderCli, ShortFlythroughWritesFramesAndOneStatsLinePerFrame) {
   const std::string out = path("out");
   ASSERT_EQ(run("render --quiet --frames 6 --every 2 --width 64 --height 36 --cache-slots 64 --page-budget 8 "
-                "--frames-in-flight 3 --method linear --vt-filter bilinear --out " + out),
+                "--frames-in-flight 3 --method linear --vt-filter brilinear:0.5 --out " + out),
             0)
       << output_;
   EXPECT_EQ(output_.find("vulkan"), std::string::npos) << output_;  // no validation message
-  EXPECT_NE(output_.find("bilinear filter"), std::string::npos) << output_;
+  EXPECT_NE(output_.find("brilinear:0.5 filter"), std::string::npos) << output_;
   EXPECT_NE(output_.find("6 frames in"), std::string::npos) << output_;
   for (const char* f : {"frame_00000.png", "frame_00002.png", "frame_00004.png", "frame_00005.png"})
     EXPECT_TRUE(fs::exists(fs::path(out) / f)) << f;
@@ -89,6 +90,11 @@ TEST_F(RenderCli, BadFlagsExitWithTheirNameAndWriteNothing) {
       {"--feedback sideways", "--feedback"},
       {"--feedback none", "--feedback"},
       {"--vt-filter nearest", "--vt-filter"},
+      {"--vt-filter brilinear:", "--vt-filter"},
+      {"--vt-filter brilinear:1.5", "--vt-filter"},
+      {"--vt-filter brilinear:-0.25", "--vt-filter"},
+      {"--vt-filter brilinear:nan", "--vt-filter"},
+      {"--vt-filter brilinear:0.3x", "--vt-filter"},
       {"--loader-threads 0", "--loader-threads"},
       {"--scene " + path("bad.json"), "log2_size"},
       {"--camera " + path("missing-camera.json"), "missing-camera.json: cannot read camera file"},
@@ -179,3 +185,23 @@ TEST_F(RenderCli, ACameraFileIsFlownWholeUnlessFramesAreGiven) {
 }
 
 }  // namespace
+
+// --vt-filter's names (render/terrain_renderer.h): the named filters, brilinear's band, and
+// every text that is not one of them, including bands outside [0, 1] and NaN.
+TEST(MipFilterNames, ParseAndPrintRoundTripAndRejectEverythingElse) {
+  using namespace tvt;
+  EXPECT_EQ(mip_filter_from_string("trilinear"), VtMipFilter::Trilinear);
+  EXPECT_EQ(mip_filter_from_string("bilinear"), VtMipFilter::Bilinear);
+  EXPECT_EQ(mip_filter_from_string("brilinear"), VtMipFilter{kDefaultBrilinearBand});
+  EXPECT_EQ(mip_filter_from_string("brilinear:0.125"), VtMipFilter{0.125f});
+  EXPECT_EQ(mip_filter_from_string("brilinear:1"), VtMipFilter::Trilinear);  // the band's ends are the others
+  EXPECT_EQ(mip_filter_from_string("brilinear:0"), VtMipFilter::Bilinear);
+  for (const char* name : {"trilinear", "bilinear", "brilinear:0.25", "brilinear:0.1", "brilinear:1e-07"}) {
+    const auto f = mip_filter_from_string(name);
+    ASSERT_TRUE(f) << name;
+    EXPECT_EQ(mip_filter_name(*f), name);
+  }
+  for (const char* bad : {"", "nearest", "Trilinear", "brilinear:", "brilinear0.5", "brilinear:x", "brilinear:0.5x",
+                          "brilinear:1.5", "brilinear:-0.25", "brilinear:nan", "brilinear:inf", "brilinear: 0.5"})
+    EXPECT_FALSE(mip_filter_from_string(bad)) << "'" << bad << "'";
+}

@@ -7,7 +7,7 @@
 //    VT (feedback on a second attachment, as it runs), VT without feedback, VT + separate
 //    feedback pass, VT with main-pass feedback stores, VT
 //    anisotropic, direct splatting, untextured, then plain/VT without the detail normal and VT
-//    with the bilinear mip filter (plus the image error of the mip filters). Process CPU time
+//    with the brilinear and bilinear mip filters (plus the image error of the mip filters). Process CPU time
 //    (CPU device) or wall clock of submit + wait per pass.
 // 2. The flythrough loop (render/flythrough.h) with each feedback variant: steady frames
 //    (nothing composed), all frames (page production included), time-to-sharp after the cut,
@@ -55,24 +55,26 @@ double median(std::vector<double> v) {
 
 // The passes of the static comparison, in timing order.
 // The *Flat passes have the detail normal off (relief 0), the *Bilinear ones sample the
-// nearest mip only (VtMipFilter::Bilinear): the knobs' costs, measured.
+// nearest mip only (VtMipFilter::Bilinear), kVtBrilinear blends only within --brilinear-band of
+// the half-way LODs: the knobs' costs, measured.
 enum Pass {
   kPlain, kVt, kVtNoFeedback, kVtSeparate, kVtAniso, kDirect, kUntextured,
-  kPlainFlat, kVtFlat, kVtNoFeedbackFlat, kVtBilinear, kVtBilinearNoFeedback, kVtStore, kPassCount
+  kPlainFlat, kVtFlat, kVtNoFeedbackFlat, kVtBilinear, kVtBilinearNoFeedback, kVtStore, kVtBrilinear, kPassCount
 };
 constexpr const char* k_pass_names[kPassCount] = {"plain", "vt", "vt_no_feedback", "vt_separate_feedback",
                                                   "vt_aniso", "direct", "untextured", "plain_no_detail",
                                                   "vt_no_detail", "vt_no_feedback_no_detail", "vt_bilinear",
-                                                  "vt_bilinear_no_feedback", "vt_store_feedback"};
+                                                  "vt_bilinear_no_feedback", "vt_store_feedback", "vt_brilinear"};
 
 struct StaticResult {
   std::vector<double> ms[kPassCount];  // per pose: fastest of the rounds
   double compaction_ms = 0;            // GPU feedback compaction, per frame
   uint32_t unconverged_poses = 0;
   uint32_t converge_frames = 0;
-  // Image error of the mip filters, per pose (PSNR over RGB, dB): bilinear VT against
-  // trilinear VT, and each against direct splatting (the composition per pixel).
-  std::vector<double> psnr_bilinear_trilinear, psnr_trilinear_direct, psnr_bilinear_direct;
+  // Image error of the mip filters, per pose (PSNR over RGB, dB): bilinear and brilinear VT
+  // against trilinear VT, and each against direct splatting (the composition per pixel).
+  std::vector<double> psnr_bilinear_trilinear, psnr_brilinear_trilinear, psnr_trilinear_direct, psnr_bilinear_direct,
+      psnr_brilinear_direct;
   double pass(Pass p) const { return median(ms[p]); }
   double ratio(Pass a, Pass b) const {
     std::vector<double> r;
@@ -143,6 +145,7 @@ Result<StaticResult> measure_static(vk::Context& g, const SceneAssets& assets, M
   made.push_back(vt_pass(FeedbackMode::Attachment, 1, VtMipFilter::Bilinear));
   made.push_back(vt_pass(FeedbackMode::None, 1, VtMipFilter::Bilinear));
   made.push_back(vt_pass(FeedbackMode::MainPass, 1));
+  made.push_back(vt_pass(FeedbackMode::Attachment, 1, VtMipFilter{a.brilinear_band}));
   for (int p = 0; p < kPassCount; ++p) {
     if (!made[size_t(p)]) return made[size_t(p)].error();
     passes[p] = std::move(made[size_t(p)].value());
@@ -185,10 +188,12 @@ Result<StaticResult> measure_static(vk::Context& g, const SceneAssets& assets, M
       }
     for (int p = 0; p < kPassCount; ++p) r.ms[p].push_back(best[p]);
     const ImageRGBA8 tri = passes[kVtNoFeedback]->render(cam), bi = passes[kVtBilinearNoFeedback]->render(cam);
-    const ImageRGBA8 direct = passes[kDirect]->render(cam);
+    const ImageRGBA8 bri = passes[kVtBrilinear]->render(cam), direct = passes[kDirect]->render(cam);
     r.psnr_bilinear_trilinear.push_back(compare_images(bi, tri).psnr_db);
+    r.psnr_brilinear_trilinear.push_back(compare_images(bri, tri).psnr_db);
     r.psnr_trilinear_direct.push_back(compare_images(tri, direct).psnr_db);
     r.psnr_bilinear_direct.push_back(compare_images(bi, direct).psnr_db);
+    r.psnr_brilinear_direct.push_back(compare_images(bri, direct).psnr_db);
   }
   r.compaction_ms = compactor.value()->time_compaction(passes[kVt]->feedback_buffer(), 9) * 1000.0;
   return r;
@@ -286,6 +291,7 @@ int run_bench_frame(const BenchFrameArgs& a) {
   if (a.frames < 10 || a.frames > 10000) return fail(cmd, "--frames: must be between 10 and 10000", 2);
   if (a.poses < 1 || a.poses > 100) return fail(cmd, "--poses: must be between 1 and 100", 2);
   if (a.rounds < 1 || a.rounds > 100) return fail(cmd, "--rounds: must be between 1 and 100", 2);
+  if (!(a.brilinear_band >= 0.f && a.brilinear_band <= 1.f)) return fail(cmd, "--brilinear-band: must be in [0, 1]", 2);
   auto assets = load_scene_and_assets(a.scene);
   if (!assets) return fail(cmd, assets.error().message, 2);
   // Timings compare producers, not first-use loading: read every material up front.
@@ -343,15 +349,22 @@ int run_bench_frame(const BenchFrameArgs& a) {
                 std::string(to_string(methods[i])).c_str(), r.pass(kPlainFlat), r.pass(kVtFlat),
                 r.ratio(kVtFlat, kPlainFlat), r.difference(kVt, kVtFlat), r.ratio(kVtNoFeedbackFlat, kPlainFlat));
   }
+  const std::string brilinear = mip_filter_name(VtMipFilter{a.brilinear_band});
   std::printf("\nMip filter (--vt-filter): bilinear samples the nearest mip only, one page lookup instead of two;\n"
-              "image error as PSNR over the frame (median over poses; direct = the composition per pixel):");
+              "%s blends two only within %g mip of each half-way LOD; image error as PSNR over the frame\n"
+              "(median over poses; direct = the composition per pixel):",
+              brilinear.c_str(), double(a.brilinear_band));
   for (size_t i = 0; i < methods.size(); ++i) {
     const StaticResult& r = statics[i];
-    std::printf("\n  %-10s VT trilinear %.1f  bilinear %.1f ms (VT/plain %.2fx -> %.2fx; noFB/plain %.2fx -> %.2fx)\n"
-                "  %-10s PSNR bilinear vs trilinear %.1f dB; vs direct: trilinear %.1f dB, bilinear %.1f dB",
-                std::string(to_string(methods[i])).c_str(), r.pass(kVt), r.pass(kVtBilinear), r.ratio(kVt, kPlain),
-                r.ratio(kVtBilinear, kPlain), r.ratio(kVtNoFeedback, kPlain), r.ratio(kVtBilinearNoFeedback, kPlain), "",
-                median(r.psnr_bilinear_trilinear), median(r.psnr_trilinear_direct), median(r.psnr_bilinear_direct));
+    std::printf("\n  %-10s VT/plain: trilinear %.2fx (%.1f ms)  %s %.2fx (%.1f ms)  bilinear %.2fx (%.1f ms); "
+                "bilinear noFB %.2fx\n"
+                "  %-10s PSNR vs trilinear: %s %.1f dB, bilinear %.1f dB; vs direct: trilinear %.1f, %s %.1f, "
+                "bilinear %.1f dB",
+                std::string(to_string(methods[i])).c_str(), r.ratio(kVt, kPlain), r.pass(kVt), brilinear.c_str(),
+                r.ratio(kVtBrilinear, kPlain), r.pass(kVtBrilinear), r.ratio(kVtBilinear, kPlain), r.pass(kVtBilinear),
+                r.ratio(kVtBilinearNoFeedback, kPlain), "", brilinear.c_str(), median(r.psnr_brilinear_trilinear),
+                median(r.psnr_bilinear_trilinear), median(r.psnr_trilinear_direct), brilinear.c_str(),
+                median(r.psnr_brilinear_direct), median(r.psnr_bilinear_direct));
   }
   std::printf("\n\nFeedback cost per frame (same poses, over VT noFB): the main pass writing a second attachment (and\n"
               "the compute pick of the rotating pixels), the main pass storing to a buffer, a separate 1/%u pass; plus compaction:\n",
@@ -387,6 +400,10 @@ int run_bench_frame(const BenchFrameArgs& a) {
                      {"psnr_vs_trilinear_db", median(statics[i].psnr_bilinear_trilinear)},
                      {"psnr_vs_direct_db", median(statics[i].psnr_bilinear_direct)},
                      {"trilinear_psnr_vs_direct_db", median(statics[i].psnr_trilinear_direct)}};
+    e["brilinear"] = {{"band", a.brilinear_band},
+                      {"vt_over_plain", statics[i].ratio(kVtBrilinear, kPlain)},
+                      {"psnr_vs_trilinear_db", median(statics[i].psnr_brilinear_trilinear)},
+                      {"psnr_vs_direct_db", median(statics[i].psnr_brilinear_direct)}};
     e["feedback_gpu_ms"] = {{"attachment", statics[i].difference(kVt, kVtNoFeedback)},
                             {"main_pass_stores", statics[i].difference(kVtStore, kVtNoFeedback)},
                             {"separate_pass", statics[i].difference(kVtSeparate, kVtNoFeedback)},

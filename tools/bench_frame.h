@@ -23,6 +23,7 @@ struct BenchFrameArgs {
   uint32_t poses = 8;         // static poses of the interleaved steady-state comparison
   uint32_t rounds = 3;        // timings per pass and pose (the fastest counts)
   uint32_t anisotropy = 4;    // taps of the anisotropic variant (<= page border B)
+  float brilinear_band = 0.25f;  // band of the brilinear variant (VtMipFilter), in [0, 1]
   bool static_only = false;   // skip the flythrough loops (quick comparisons)
 };
 

@@ -275,6 +275,8 @@ const CommandRegistrar k_register{
       fc->add_option("--poses", fr->poses, "Static poses of the steady-state comparison")->capture_default_str();
       fc->add_option("--rounds", fr->rounds, "Timings per pass and pose (fastest counts)")->capture_default_str();
       fc->add_option("--anisotropy", fr->anisotropy, "Taps of the anisotropic VT variant")->capture_default_str();
+      fc->add_option("--brilinear-band", fr->brilinear_band, "Blend band of the brilinear VT variant (0 bilinear .. 1 trilinear)")
+          ->capture_default_str();
       fc->add_option("--json", fr->json_out, "Also write the figures as JSON");
       fc->add_flag("--static-only", fr->static_only, "Only the steady-state comparison (no flythrough loops)");
       fc->add_option("--gpu", fr->gpu_name, "Vulkan device name substring or index");

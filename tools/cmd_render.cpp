@@ -79,7 +79,7 @@ int run_render(const RenderArgs& a) {
   if (!feedback || *feedback == FeedbackMode::None)
     return fail(cmd, "--feedback: attachment, main or separate, got '" + a.feedback + "'", 2);
   const auto mip_filter = mip_filter_from_string(a.vt_filter);
-  if (!mip_filter) return fail(cmd, "--vt-filter: trilinear or bilinear, got '" + a.vt_filter + "'", 2);
+  if (!mip_filter) return fail(cmd, "--vt-filter: trilinear, bilinear, brilinear or brilinear:W with W in [0, 1], got '" + a.vt_filter + "'", 2);
   std::shared_ptr<const PageStoreReader> store;
   if (!a.store.empty()) {
     auto opened = PageStoreReader::open(a.store);
@@ -149,7 +149,7 @@ int run_render(const RenderArgs& a) {
   std::printf("terravt render: %s, V = 2^%u, %ux%u, %u frames, method %s, source %s, cache %u pages, budget %u/frame, "
               "%s filter, device %s\n",
               assets->desc.source_path.c_str(), assets->desc.vt.log2_size, a.width, a.height, frames, a.method.c_str(),
-              a.source.c_str(), a.cache_slots, a.page_budget, mip_filter_name(*mip_filter), g.device_name().c_str());
+              a.source.c_str(), a.cache_slots, a.page_budget, mip_filter_name(*mip_filter).c_str(), g.device_name().c_str());
   std::printf("camera: %s\n", camera->describe().c_str());
   uint32_t written = 0;
   std::string write_error;
@@ -269,7 +269,9 @@ const CommandRegistrar k_register{
           ->capture_default_str();
       app.add_option("--anisotropy", a->anisotropy, "VT taps per mip along the footprint (1: isotropic; at most the page border)")->capture_default_str();
       app.add_option("--vt-filter", a->vt_filter,
-                     "Between VT mips: trilinear (two page lookups, blended) or bilinear (nearest mip, one lookup, cheaper)")
+                     "Between VT mips: trilinear (two page lookups, blended), bilinear (nearest mip, one lookup, cheaper, "
+                     "visible mip bands) or brilinear[:W] (blend only within W of each half-way LOD, default 0.25: one "
+                     "lookup outside that band)")
           ->capture_default_str();
       app.add_option("--detail-relief", a->detail_relief, "Metres of material height relief for the detail normal (0: off)")->capture_default_str();
       app.add_option("--frames-in-flight", a->frames_in_flight, "Frames recorded ahead of the GPU (1: wait for each frame)")->capture_default_str();

@@ -39,9 +39,10 @@ TVT_CONST uint TVT_BIND_TERRAIN_PLAIN = 11u;             // sampler2DArray (laye
 // passes drop the height-gradient gathers (one per mip lookup) altogether.
 #define TVT_TERRAIN_SPEC_DETAIL_NORMAL 2
 // ... and the filter between mips (all VT passes, the separate feedback pass and the
-// matched-LOD direct pass): 1 trilinear (two mips, blended), 0 bilinear from the nearest mip
-// (one page lookup; feedback then asks for that mip).
-#define TVT_TERRAIN_SPEC_TRILINEAR 3
+// matched-LOD direct pass), a float: the LOD band around each half-way point in which two mips
+// blend (vt_lod.glsl tvt_filtered_lod): 1 trilinear, 0 bilinear from the nearest mip (one page
+// lookup; feedback then asks for that mip), between: brilinear.
+#define TVT_TERRAIN_SPEC_MIP_BAND 3
 TVT_CONST uint TVT_TERRAIN_ATTR_GRID = 0u;     // vertex attribute: uvec4 (i, j, skirt, 0), R16G16B16A16_UINT
 TVT_CONST uint TVT_HF_FRAC_BITS = 8u;          // heightfield coordinates in 1/256 heightfield texels
 
