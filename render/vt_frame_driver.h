@@ -6,8 +6,7 @@
 // never waits for feedback.
 //
 // Not thread-safe; uses the context's queue (serialise with other users). `vt` and `writer`
-// must outlive the driver; the writer must write feedback (FeedbackMode MainPass or
-// SeparatePass).
+// must outlive the driver; the writer must write feedback (any FeedbackMode but None).
 #pragma once
 #include <cstdint>
 #include <memory>
@@ -29,13 +28,16 @@ class VtFrameDriver {
   static Result<std::unique_ptr<VtFrameDriver>> create(vk::Context& context, VtSystem& vt, TerrainRenderer& writer);
 
   // One frame at `camera`: previous feedback -> residency -> compose + table scatter + the
-  // writer's pass -> feedback compaction; waits for the frame. Returns the VT's frame stats.
-  VtFrameStats frame(const Camera& camera);
+  // writer's pass -> feedback compaction; waits for the frame. Returns the VT's frame stats,
+  // or the error of a material that could not be loaded on first use (the frame still ran
+  // to its end; the driver stays usable).
+  Result<VtFrameStats> frame(const Camera& camera);
 
   // frame() until `quiet_frames` frames in a row request and compose nothing, at most
   // max_frames. quiet_frames = 0: N^2 + 1 (every pixel of the feedback block has reported
   // once, plus the frame that reads the last report).
-  VtConvergence converge(const Camera& camera, uint32_t max_frames, uint32_t quiet_frames = 0);
+  // Stops at the first frame that fails, with its error.
+  Result<VtConvergence> converge(const Camera& camera, uint32_t max_frames, uint32_t quiet_frames = 0);
 
   // Distinct pages the last compacted feedback named (0 before the first frame).
   size_t last_feedback_pages() const { return last_feedback_pages_; }

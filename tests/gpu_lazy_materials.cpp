@@ -15,6 +15,9 @@
 #include "compose/scene.h"
 #include "render/flythrough.h"
 #include "render/gpu_composer.h"
+#include "render/terrain_renderer.h"
+#include "render/vt_frame_driver.h"
+#include "render/vt_system.h"
 #include "compose/reference_compositor.h"
 #include "support/file_scene.h"
 #include "support/gpu_test.h"
@@ -320,4 +323,34 @@ TEST_F(GpuLazyMaterials, ADirectSplatRendererReportsAMaterialThatCannotBeLoaded)
   EXPECT_NE(r.error().message.find(broken.error()),
             std::string::npos)
       << r.error().message;
+}
+
+// The blocking frame driver (tests' and bench frame's convergence loop) reports the same error
+// instead of stopping the process, after finishing the frame; the driver stays usable.
+TEST_F(GpuLazyMaterials, TheFrameDriverReportsAMaterialThatCannotBeLoaded) {
+  const SceneWithDeletedMaterial broken("tvt_gpu_lazy_driver");
+  const SceneAssets& assets = broken.assets;
+  auto packed = pack_scene(assets, {});
+  ASSERT_TRUE(packed.ok());
+  VtSystemOptions vo;
+  vo.cache_slots = 64;
+  auto vt = VtSystem::create(ctx(), packed.value(), vo);
+  ASSERT_TRUE(vt.ok()) << vt.error().message;
+  TerrainRendererOptions o;
+  o.width = 64;
+  o.height = 64;
+  VtSystem& v = *vt.value();
+  o.vt = TerrainVtInputs{&v.info_buffer(), &v.entry_buffer(), &v.cache(), v.sampler(), 4};
+  auto writer = TerrainRenderer::create(ctx(), assets, o);
+  ASSERT_TRUE(writer.ok()) << writer.error().message;
+  auto driver = VtFrameDriver::create(ctx(), v, *writer.value());
+  ASSERT_TRUE(driver.ok());
+  const Camera cam = flythrough_path(assets, writer.value()->mesh()).camera_at(1.0);
+  auto c = driver.value()->converge(cam, 10);
+  ASSERT_FALSE(c.ok());
+  EXPECT_NE(c.error().message.find(broken.error()), std::string::npos) << c.error().message;
+  // The next frame retries the pages and fails the same way rather than crashing.
+  auto f = driver.value()->frame(cam);
+  ASSERT_FALSE(f.ok());
+  EXPECT_NE(f.error().message.find(broken.error()), std::string::npos) << f.error().message;
 }

@@ -181,7 +181,9 @@ TEST_F(TerrainSamplingTest, AnisotropicSamplingReadsFinerMipsAlongGrazingViewsAn
   const Camera cam = path.camera_at(path.start_time() + 0.5);
   auto driver = VtFrameDriver::create(ctx(), v, *writer.value());
   ASSERT_TRUE(driver.ok());
-  ASSERT_TRUE(driver.value()->converge(cam, 60).converged);
+  const auto conv = driver.value()->converge(cam, 60);
+  ASSERT_TRUE(conv.ok()) << conv.error().message;
+  ASSERT_TRUE(conv->converged);
 
   const ImageRGBA8 a_img = aniso.value()->render(cam);
   const std::vector<Probe> a = read_probe(*aniso.value());
@@ -283,8 +285,9 @@ TEST_F(TerrainSamplingTest, SeparateFeedbackPassReportsThePagesTheMainPassReport
   // And it drives residency: a static view converges with only the separate pass reporting.
   auto driver = VtFrameDriver::create(ctx(), v, *separate.value());
   ASSERT_TRUE(driver.ok());
-  const VtConvergence c = driver.value()->converge(path.camera_at(path.start_time() + 4.0), 60);
-  EXPECT_TRUE(c.converged) << c.frames << " frames";
+  const auto c = driver.value()->converge(path.camera_at(path.start_time() + 4.0), 60);
+  ASSERT_TRUE(c.ok()) << c.error().message;
+  EXPECT_TRUE(c->converged) << c->frames << " frames";
   EXPECT_GT(v.stats().residency.resident, 20u);
 }
 
@@ -356,8 +359,9 @@ TEST_F(TerrainSamplingTest, ExtremeCoordinatesAtTheFarCornerOfTwoPow24) {
   cam.near_m = 0.05;
   auto driver = VtFrameDriver::create(ctx(), v, *writer.value());
   ASSERT_TRUE(driver.ok());
-  const VtConvergence c = driver.value()->converge(cam, 40);
-  EXPECT_TRUE(c.converged) << c.frames << " frames";
+  const auto c = driver.value()->converge(cam, 40);
+  ASSERT_TRUE(c.ok()) << c.error().message;
+  EXPECT_TRUE(c->converged) << c->frames << " frames";
   const ImageRGBA8 vt_img = writer.value()->target().read_rgba8(0);
   EXPECT_FALSE(has_magenta(vt_img));
 

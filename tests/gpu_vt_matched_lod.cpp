@@ -98,8 +98,9 @@ class GpuVtMatchedLod : public GpuTest {
     cam = path.camera_at(path.start_time() + 0.5);
     auto driver = VtFrameDriver::create(ctx(), v, *writer.value());
     ASSERT_TRUE(driver.ok()) << driver.error().message;
-    const VtConvergence conv = driver.value()->converge(cam, 60);
-    ASSERT_TRUE(conv.converged) << "no convergence in " << conv.frames << " frames";
+    const auto conv = driver.value()->converge(cam, 60);
+    ASSERT_TRUE(conv.ok()) << conv.error().message;
+    ASSERT_TRUE(conv->converged) << "no convergence in " << conv->frames << " frames";
     EXPECT_EQ(v.stats().residency.mip_bias, 0u);  // the matched pass assumes no bias
     resident = v.stats().residency.resident;
 

@@ -173,9 +173,10 @@ Result<StaticResult> measure_static(vk::Context& g, const SceneAssets& assets, M
   const double span = std::min(path.end_time() - path.start_time(), double(a.frames) / a.fps);
   for (uint32_t k = 0; k < a.poses; ++k) {
     const Camera cam = path.camera_at(path.start_time() + (k + 0.5) * span / a.poses);
-    const VtConvergence c = driver.value()->converge(cam, 80);
-    r.converge_frames += c.frames;
-    r.unconverged_poses += c.converged ? 0 : 1;
+    const auto c = driver.value()->converge(cam, 80);
+    if (!c) return c.error();
+    r.converge_frames += c->frames;
+    r.unconverged_poses += c->converged ? 0 : 1;
     double best[kPassCount];
     std::fill(std::begin(best), std::end(best), 1e300);
     for (uint32_t round = 0; round <= a.rounds; ++round)  // round 0 warms caches up
