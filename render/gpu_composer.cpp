@@ -37,11 +37,15 @@ Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, c
     if (auto s = c->materials_->upload_all(); !s) return s.error();
   c->job_buffer_ = context.create_buffer(sizeof(gpu::TvtPageJob) * slots * c->records_in_flight_,
                                          VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
-  c->readback_buffer_ = context.create_buffer(VkDeviceSize(c->slot_texels_) * c->slot_texels_ * 4 * slots,
-                                              VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
-  c->output_ = context.create_image(VK_FORMAT_R8G8B8A8_UNORM, c->slot_texels_, c->slot_texels_, slots,
-                                    VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT |
-                                        VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT);
+  // The read-back buffer of compose_pages() is made on its first use: a VT cache never needs it.
+  const VkImageUsageFlags usage = VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT |
+                                  VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT;
+  if (auto fits = context.check_image_fits(VK_FORMAT_R8G8B8A8_UNORM, c->slot_texels_, c->slot_texels_, slots, usage,
+                                           "compose slots (one per cached page, vt.page_texels + 2 vt.border_texels "
+                                           "texels a side; use fewer slots or smaller pages)");
+      !fits)
+    return fits.error();
+  c->output_ = context.create_image(VK_FORMAT_R8G8B8A8_UNORM, c->slot_texels_, c->slot_texels_, slots, usage);
 
   const vk::ComputeBinding bindings[] = {
       {TVT_BIND_COMPOSE_PARAMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}, {TVT_BIND_MATERIAL_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
@@ -105,6 +109,8 @@ Result<std::vector<std::vector<uint8_t>>> GpuComposer::compose_pages(std::span<c
   std::vector<std::vector<uint8_t>> out;
   out.reserve(pages.size());
   const size_t page_bytes = size_t(slot_texels_) * slot_texels_ * 4;
+  if (!readback_buffer_ && !pages.empty())
+    readback_buffer_ = context_->create_buffer(VkDeviceSize(page_bytes) * slots_, VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
   for (size_t first = 0; first < pages.size(); first += slots_) {
     const size_t count = std::min<size_t>(slots_, pages.size() - first);
     std::vector<PageJob> jobs(count);

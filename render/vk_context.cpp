@@ -344,6 +344,13 @@ Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) 
   ctx->properties_ = chosen->props;
   ctx->queue_family_ = chosen->queue_family;
   vkGetPhysicalDeviceMemoryProperties(ctx->physical_, &ctx->memory_properties_);
+  {
+    auto p11 = init<VkPhysicalDeviceVulkan11Properties>(VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_1_PROPERTIES);
+    auto p2 = init<VkPhysicalDeviceProperties2>(VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2);
+    p2.pNext = &p11;
+    vkGetPhysicalDeviceProperties2(ctx->physical_, &p2);
+    ctx->max_allocation_bytes_ = p11.maxMemoryAllocationSize;
+  }
 
   // --- features: query everything, enable what later passes use when supported.
   auto have13 = init<VkPhysicalDeviceVulkan13Features>(VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES);
@@ -467,6 +474,58 @@ Buffer Context::create_buffer(VkDeviceSize size, VkBufferUsageFlags usage, bool 
   TVT_VK_CHECK(vkBindBufferMemory(device_, b.buffer_, b.memory_, 0));
   if (host_visible) TVT_VK_CHECK(vkMapMemory(device_, b.memory_, 0, VK_WHOLE_SIZE, 0, &b.mapped_));
   return b;
+}
+
+Status Context::check_image_fits(VkFormat format, uint32_t width, uint32_t height, uint32_t layers,
+                                 VkImageUsageFlags usage, const std::string& what) const {
+  const double mb = 1.0 / 1048576.0;
+  char text[320];
+  VkImageFormatProperties fp{};
+  if (vkGetPhysicalDeviceImageFormatProperties(physical_, format, VK_IMAGE_TYPE_2D, VK_IMAGE_TILING_OPTIMAL, usage, 0,
+                                               &fp) != VK_SUCCESS) {
+    return make_error(what + ": the device cannot make this image (format " + std::to_string(int(format)) + ")");
+  }
+  if (width > fp.maxExtent.width || height > fp.maxExtent.height || layers > fp.maxArrayLayers) {
+    std::snprintf(text, sizeof(text), "%s: %ux%u texels x %u layers exceed the device's limits (%ux%u x %u layers)",
+                  what.c_str(), width, height, layers, fp.maxExtent.width, fp.maxExtent.height, fp.maxArrayLayers);
+    return make_error(text);
+  }
+  // The memory it needs, as the device computes it (creating an image allocates nothing).
+  auto ici = init<VkImageCreateInfo>(VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO);
+  ici.imageType = VK_IMAGE_TYPE_2D;
+  ici.format = format;
+  ici.extent = {width, height, 1};
+  ici.mipLevels = 1;
+  ici.arrayLayers = layers;
+  ici.samples = VK_SAMPLE_COUNT_1_BIT;
+  ici.tiling = VK_IMAGE_TILING_OPTIMAL;
+  ici.usage = usage;
+  ici.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
+  ici.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+  VkImage probe = VK_NULL_HANDLE;
+  if (vkCreateImage(device_, &ici, nullptr, &probe) != VK_SUCCESS)
+    return make_error(what + ": the device cannot create a " + std::to_string(width) + "x" + std::to_string(height) +
+                      " image of " + std::to_string(layers) + " layers");
+  VkMemoryRequirements req{};
+  vkGetImageMemoryRequirements(device_, probe, &req);
+  vkDestroyImage(device_, probe, nullptr);
+  const VkDeviceSize bytes = req.size;
+  VkDeviceSize heap = 0;
+  for (uint32_t i = 0; i < memory_properties_.memoryHeapCount; ++i)
+    if (memory_properties_.memoryHeaps[i].flags & VK_MEMORY_HEAP_DEVICE_LOCAL_BIT)
+      heap = std::max(heap, memory_properties_.memoryHeaps[i].size);
+  const std::pair<VkDeviceSize, const char*> limits[] = {
+      {fp.maxResourceSize, "the largest image of this format"},
+      {max_allocation_bytes_, "the largest single allocation"},
+      {heap, "the device-local memory heap"}};
+  for (const auto& [limit, name] : limits) {
+    if (limit == 0 || bytes <= limit) continue;  // 0: not reported
+    std::snprintf(text, sizeof(text), "%s: %ux%u texels x %u layers is %.1f MB, more than %s on %s (%.1f MB)",
+                  what.c_str(), width, height, layers, double(bytes) * mb, name, properties_.deviceName,
+                  double(limit) * mb);
+    return make_error(text);
+  }
+  return Ok{};
 }
 
 Image Context::create_image(VkFormat format, uint32_t width, uint32_t height, uint32_t layers,

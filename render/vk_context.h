@@ -249,6 +249,13 @@ class Context {
   // 1 ... 1 + log2(max(width, height)).
   Image create_image(VkFormat format, uint32_t width, uint32_t height, uint32_t layers, VkImageUsageFlags usage,
                      uint32_t mip_levels = 1);
+  // Whether create_image() with these arguments (one mip) fits what the device allows for one
+  // image: its format limits (extent, layers, maxResourceSize), the largest single allocation
+  // (maxMemoryAllocationSize) and the device-local heap. The error starts with `what` and
+  // gives the image's size and the limit it exceeds, in MB. create_image() itself treats
+  // failure as fatal: call this first where a user's numbers set the size.
+  Status check_image_fits(VkFormat format, uint32_t width, uint32_t height, uint32_t layers, VkImageUsageFlags usage,
+                          const std::string& what) const;
   ComputePipeline create_compute_pipeline(std::span<const uint32_t> spirv, std::span<const ComputeBinding> bindings,
                                           uint32_t push_constant_bytes = 0);
   DescriptorSet allocate_descriptor_set(const ComputePipeline& pipeline);
@@ -286,6 +293,7 @@ class Context {
   VkCommandPool command_pool_ = VK_NULL_HANDLE;
   VkPhysicalDeviceProperties properties_{};
   VkPhysicalDeviceMemoryProperties memory_properties_{};
+  VkDeviceSize max_allocation_bytes_ = 0;  // VkPhysicalDeviceVulkan11Properties::maxMemoryAllocationSize
   bool validation_ = false;
   DeviceFeatures features_{};
   std::unique_ptr<Messages> messages_;
