@@ -79,7 +79,7 @@ class Parser : public json_check::Reader {
     if (const json* f = field(*fbm, "size")) h.size = uint(*f, f_at / "size", 16, 8192);
     if (const json* f = field(*fbm, "seed")) h.seed = uint(*f, f_at / "seed", 0, k_u32_max);
     if (const json* f = field(*fbm, "octaves")) h.octaves = uint(*f, f_at / "octaves", 1, 16);
-    if (const json* f = field(*fbm, "frequency")) h.frequency = real(*f, f_at / "frequency", above(0));
+    if (const json* f = field(*fbm, "frequency")) h.frequency = real(*f, f_at / "frequency", above(0, 1e6));
     if (const json* f = field(*fbm, "gain")) h.gain = real(*f, f_at / "gain", open(0, 1));
     if (const json* f = field(*fbm, "lacunarity")) h.lacunarity = real(*f, f_at / "lacunarity", open_closed(1, 4));
     return h;
@@ -88,8 +88,8 @@ class Parser : public json_check::Reader {
   TerrainDesc terrain(const json& v, const Ptr& at) const {
     object(v, at, {"extent_m", "height_m", "heightmap"});
     TerrainDesc t;
-    if (const json* f = field(v, "extent_m")) t.extent_m = real(*f, at / "extent_m", above(0));
-    if (const json* f = field(v, "height_m")) t.height_m = real(*f, at / "height_m", at_least(0));
+    if (const json* f = field(v, "extent_m")) t.extent_m = real(*f, at / "extent_m", above(0, 1e9));  // the camera file's coordinate limit
+    if (const json* f = field(v, "height_m")) t.height_m = real(*f, at / "height_m", at_least(0, 1e6));
     if (const json* f = field(v, "heightmap")) t.heightmap = heightmap(*f, at / "heightmap");
     return t;
   }
@@ -138,16 +138,16 @@ class Parser : public json_check::Reader {
       w.kind = WeightDesc::Kind::Rule;
       if (const json* f = field(*rule, "height"))
         std::tie(w.height_lo, w.height_hi) = window(*f, r_at / "height", closed(0, 1));
-      if (const json* f = field(*rule, "height_fade")) w.height_fade = real(*f, r_at / "height_fade", at_least(0));
+      if (const json* f = field(*rule, "height_fade")) w.height_fade = real(*f, r_at / "height_fade", at_least(0, 1e6));
       if (const json* f = field(*rule, "slope_deg"))
         std::tie(w.slope_lo_deg, w.slope_hi_deg) = window(*f, r_at / "slope_deg", closed(0, 90));
       if (const json* f = field(*rule, "slope_fade_deg"))
-        w.slope_fade_deg = real(*f, r_at / "slope_fade_deg", at_least(0));
+        w.slope_fade_deg = real(*f, r_at / "slope_fade_deg", at_least(0, 1e6));
       if (const json* noise = field(*rule, "noise")) {
         const Ptr n_at = r_at / "noise";
         object(*noise, n_at, {"amplitude", "frequency"});
         if (const json* f = field(*noise, "amplitude")) w.noise_amplitude = real(*f, n_at / "amplitude", closed(0, 4));
-        if (const json* f = field(*noise, "frequency")) w.noise_frequency = real(*f, n_at / "frequency", above(0));
+        if (const json* f = field(*noise, "frequency")) w.noise_frequency = real(*f, n_at / "frequency", above(0, 1e6));
       }
       return w;
     }
@@ -210,7 +210,7 @@ class Parser : public json_check::Reader {
       }
     }
     if (const json* f = field(v, "fade_texels"))
-      std::tie(d.fade_lo_texels, d.fade_hi_texels) = window(*f, at / "fade_texels", at_least(0));
+      std::tie(d.fade_lo_texels, d.fade_hi_texels) = window(*f, at / "fade_texels", at_least(0, 0x1p30));
     return d;
   }
 
