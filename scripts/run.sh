@@ -5,5 +5,6 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/build.sh
 mkdir -p out
-./build/tools/terravt render --out out/render "$@"
+# --overwrite: each run replaces the previous run's frames and stats in out/render.
+./build/tools/terravt render --out out/render --overwrite "$@"
 echo "frames and stats.jsonl in out/render/"

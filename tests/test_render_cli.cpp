@@ -71,6 +71,14 @@ TEST_F(RenderCli, BadFlagsExitWithTheirNameAndWriteNothing) {
   const std::string missing = path("missing.tvt");
   std::ofstream(path("bad.json")) << "{ \"vt\": { \"log2_size\": \"sixteen\" } }";
   std::ofstream(path("bad-camera.json")) << R"({"keys": [{"time_s": 0, "position_m": [1, 2, 3]}]})";
+  {
+    // Within the scene format's limits, but 512 slots of 2048^2 texels (8 GB) exceed what one image may hold.
+    std::ifstream in(std::string(TVT_SOURCE_DIR) + "/docs/default-scene.json");
+    auto scene = nlohmann::json::parse(in);
+    scene["vt"]["page_texels"] = 1024;
+    scene["vt"]["border_texels"] = 512;
+    std::ofstream(path("huge-pages.json")) << scene.dump();
+  }
   const std::pair<std::string, std::string> cases[] = {
       {"--method bogus", "--method"},
       {"--frames 0", "--frames"},
@@ -89,6 +97,21 @@ TEST_F(RenderCli, BadFlagsExitWithTheirNameAndWriteNothing) {
       {"--store " + missing, "--store"},
       {"--feedback sideways", "--feedback"},
       {"--feedback none", "--feedback"},
+      {"--fps 1e-310", "--fps"},
+      {"--cache-slots 0", "--cache-slots"},
+      {"--cache-slots 100000", "--cache-slots"},
+      {"--page-budget 0", "--page-budget"},
+      {"--cache-slots 64 --page-budget 65", "--page-budget"},
+      {"--window 3", "--window"},
+      {"--window 8192", "--window"},
+      {"--feedback-divisor 0", "--feedback-divisor"},
+      {"--feedback-divisor 37", "--feedback-divisor"},  // more than the 36-pixel height
+      {"--anisotropy 0", "--anisotropy"},
+      {"--anisotropy 5", "--anisotropy"},  // the built-in scene's border is 4
+      {"--camera ''", "--camera: empty path"},
+      {"--save-camera ''", "--save-camera: empty path"},
+      {"--gpu ''", "--gpu: empty"},
+      {"--scene " + path("huge-pages.json"), "compose slots"},
       {"--vt-filter nearest", "--vt-filter"},
       {"--vt-filter brilinear:", "--vt-filter"},
       {"--vt-filter brilinear:1.5", "--vt-filter"},
@@ -117,13 +140,67 @@ std::vector<nlohmann::json> stats_lines(const std::string& out) {
   return lines;
 }
 
+std::string file_text(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+// An earlier run's output is never replaced or emptied without --overwrite: not by a second run,
+// not by a run whose flags are bad, not through a stats.jsonl that links elsewhere. With
+// --overwrite the earlier frames go (none of them mixes with the new run) and the user's other
+// files stay; --save-camera follows the same rule.
+TEST_F(RenderCli, AnEarlierRunIsReplacedOnlyWithOverwrite) {
+  const std::string out = path("run");
+  const std::string common = "render --quiet --width 64 --height 36 --cache-slots 64 --method linear --every 2 ";
+  ASSERT_EQ(run(common + "--frames 5 --out " + out), 0) << output_;
+  std::ofstream(fs::path(out) / "notes.txt") << "mine";
+  const std::string stats = file_text(fs::path(out) / "stats.jsonl");
+  ASSERT_FALSE(stats.empty());
+  ASSERT_TRUE(fs::exists(fs::path(out) / "frame_00004.png"));
+
+  EXPECT_EQ(run(common + "--frames 2 --out " + out), 2);
+  EXPECT_NE(output_.find("--out: " + out + " holds the output of an earlier run"), std::string::npos) << output_;
+  EXPECT_NE(output_.find("--overwrite"), std::string::npos) << output_;
+  EXPECT_EQ(run(common + "--frames 2 --cache-slots 0 --overwrite --out " + out), 2);  // bad flag: nothing touched
+  EXPECT_EQ(file_text(fs::path(out) / "stats.jsonl"), stats);
+  EXPECT_TRUE(fs::exists(fs::path(out) / "frame_00004.png"));
+
+  ASSERT_EQ(run(common + "--frames 2 --overwrite --out " + out), 0) << output_;
+  EXPECT_EQ(stats_lines(out).size(), 2u);
+  EXPECT_TRUE(fs::exists(fs::path(out) / "frame_00000.png"));
+  EXPECT_TRUE(fs::exists(fs::path(out) / "frame_00001.png"));  // the last frame is always written
+  EXPECT_FALSE(fs::exists(fs::path(out) / "frame_00002.png"));  // the earlier run's
+  EXPECT_FALSE(fs::exists(fs::path(out) / "frame_00004.png"));
+  EXPECT_EQ(file_text(fs::path(out) / "notes.txt"), "mine");
+
+  // A stats.jsonl that is a symbolic link: refused, and with --overwrite the link is replaced,
+  // never written through.
+  const std::string linked = path("linked"), precious = path("precious.txt");
+  fs::create_directories(linked);
+  std::ofstream(precious) << "keep";
+  fs::create_symlink(precious, fs::path(linked) / "stats.jsonl");
+  EXPECT_EQ(run(common + "--frames 1 --out " + linked), 2);
+  ASSERT_EQ(run(common + "--frames 1 --overwrite --out " + linked), 0) << output_;
+  EXPECT_EQ(file_text(precious), "keep");
+  EXPECT_FALSE(fs::is_symlink(fs::path(linked) / "stats.jsonl"));
+  EXPECT_EQ(stats_lines(linked).size(), 1u);
+
+  const std::string cam = path("cam.json");
+  std::ofstream(cam) << "mine";
+  EXPECT_EQ(run("render --save-camera " + cam), 2);
+  EXPECT_NE(output_.find("--save-camera: " + cam + " exists"), std::string::npos) << output_;
+  EXPECT_EQ(file_text(cam), "mine");
+  ASSERT_EQ(run("render --overwrite --save-camera " + cam), 0) << output_;
+  EXPECT_NE(file_text(cam).find("\"keys\""), std::string::npos);
+}
+
 TEST_F(RenderCli, TheSavedBuiltInFlythroughIsTheDocumentedTemplateAndFliesTheSamePath) {
   const std::string cam = path("flythrough.json");
   ASSERT_EQ(run("render --save-camera " + cam), 0) << output_;
   EXPECT_NE(output_.find("built-in flythrough (7 keys, 24.0 s, 1 cut)"), std::string::npos) << output_;
   std::ifstream saved(cam), doc(std::string(TVT_SOURCE_DIR) + "/docs/default-camera.json");
   const std::string saved_text(std::istreambuf_iterator<char>(saved), {}), doc_text(std::istreambuf_iterator<char>(doc), {});
-  EXPECT_EQ(saved_text, doc_text) << "docs/default-camera.json is stale: terravt render --save-camera docs/default-camera.json";
+  EXPECT_EQ(saved_text, doc_text) << "docs/default-camera.json is stale: terravt render --overwrite --save-camera docs/default-camera.json";
 
   // The same frames from the file as from the built-in path (positions and angles per frame).
   const std::string common = "render --quiet --frames 3 --every 5 --width 64 --height 36 --cache-slots 64 --method linear ";
@@ -142,19 +219,23 @@ TEST_F(RenderCli, TheSavedBuiltInFlythroughIsTheDocumentedTemplateAndFliesTheSam
   }
 }
 
-TEST_F(RenderCli, SaveCameraNeverWritesAFileThatWouldNotLoad) {
-  // The built-in flythrough over a terrain 2e10 m wide: its clearance (1e-4 of the extent) and
-  // positions leave the camera file limits.
+// A terrain wider than camera coordinates may reach (1e9 m) is refused when the scene loads,
+// naming the field: before the scene format capped extent_m, its built-in flythrough (clearance
+// 1e-4 of the extent) left the camera file limits. --save-camera still checks what it writes
+// against those limits and writes nothing otherwise.
+TEST_F(RenderCli, ATerrainBeyondTheCameraLimitsIsRefusedAndNothingIsWritten) {
   std::ifstream in(std::string(TVT_SOURCE_DIR) + "/docs/default-scene.json");
   auto scene = nlohmann::json::parse(in);
   scene["terrain"]["extent_m"] = 2e10;
   std::ofstream(path("huge.json")) << scene.dump();
   const std::string cam = path("huge-camera.json");
   EXPECT_EQ(run("render --scene " + path("huge.json") + " --save-camera " + cam), 2);
-  EXPECT_NE(output_.find("--save-camera: this path does not fit the camera file limits, nothing written"), std::string::npos)
-      << output_;
-  EXPECT_NE(output_.find("/clearance_m"), std::string::npos) << output_;
+  EXPECT_NE(output_.find("/terrain/extent_m"), std::string::npos) << output_;
   EXPECT_FALSE(fs::exists(cam));
+  scene["terrain"]["extent_m"] = 1e9;  // the largest: its flythrough fits the camera file
+  std::ofstream(path("largest.json")) << scene.dump();
+  ASSERT_EQ(run("render --scene " + path("largest.json") + " --save-camera " + cam), 0) << output_;
+  EXPECT_TRUE(fs::exists(cam));
 }
 
 TEST_F(RenderCli, ACameraFileIsFlownWholeUnlessFramesAreGiven) {

@@ -54,7 +54,73 @@ struct RenderArgs {
   bool quiet = false;
   bool debug = false;       // also write cache atlas, page table and feedback images
   bool debug_mips = false;  // colour every texel by the mip its data comes from
+  bool overwrite = false;   // replace an earlier run's output in `out` / an existing save_camera file
+  // Given on the command line (an empty value is then an error, not "use the default").
+  bool camera_given = false, save_camera_given = false, gpu_given = false;
 };
+
+// What a run writes into its folder: frames, debug images, stats.
+bool is_run_output(const std::filesystem::path& file) {
+  const std::string name = file.filename().string(), ext = file.extension().string();
+  if (name == "stats.jsonl") return true;
+  for (const char* prefix : {"frame_", "atlas_", "pagetable_", "feedback_"}) {
+    const std::string_view p(prefix);
+    if (name.size() == p.size() + 5 + ext.size() && name.starts_with(p) && (ext == ".png" || ext == ".exr") &&
+        std::all_of(name.begin() + long(p.size()), name.end() - long(ext.size()), [](char c) { return c >= '0' && c <= '9'; }))
+      return true;
+  }
+  return false;
+}
+
+// Checked before any work: `out` is a folder or can be made one, and holds no earlier run's
+// output unless `overwrite`. Nothing is created here (see open_output_folder()).
+Status check_output_folder(const std::string& out, bool overwrite) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path dir(out);
+  if (fs::exists(fs::symlink_status(dir, ec))) {
+    if (!fs::is_directory(dir, ec)) return make_error("--out: " + out + " exists and is not a folder");
+    size_t earlier = 0;
+    std::string example;
+    for (const auto& e : fs::directory_iterator(dir, ec))
+      if (is_run_output(e.path())) {
+        if (example.empty() || e.path().filename() == "stats.jsonl") example = e.path().filename().string();
+        ++earlier;
+      }
+    if (ec) return make_error("--out: cannot read folder " + out + " (" + ec.message() + ")");
+    if (earlier > 0 && !overwrite)
+      return make_error("--out: " + out + " holds the output of an earlier run (" + std::to_string(earlier) +
+                        (earlier == 1 ? " file: " : " files such as ") + example + "); pass --overwrite to replace it, or choose another folder");
+    return Ok{};
+  }
+  // The nearest existing ancestor must be a folder for create_directories() to succeed.
+  for (fs::path p = fs::absolute(dir, ec).parent_path(); !p.empty(); p = p.parent_path()) {
+    if (fs::exists(p, ec)) {
+      if (!fs::is_directory(p, ec)) return make_error("--out: cannot create folder " + out + " (" + p.string() + " is not a folder)");
+      break;
+    }
+    if (p == p.root_path()) break;
+  }
+  return Ok{};
+}
+
+// At the first frame, once everything the run needs exists: makes the folder, removes an
+// earlier run's output (check_output_folder() allowed it: --overwrite) and opens stats.jsonl.
+Status open_output_folder(const std::string& out, std::ofstream& stats) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::create_directories(out, ec);
+  if (ec || !fs::is_directory(out)) return make_error("--out: cannot create folder " + out);
+  std::vector<fs::path> earlier;
+  for (const auto& e : fs::directory_iterator(out, ec))
+    if (is_run_output(e.path())) earlier.push_back(e.path());
+  // Symbolic links are removed, never followed: a stats.jsonl linking elsewhere is not written through.
+  for (const fs::path& f : earlier)
+    if (!fs::remove(f, ec)) return make_error("--out: cannot remove " + f.string() + " of an earlier run");
+  stats.open(fs::path(out) / "stats.jsonl");
+  if (!stats) return make_error("--out: cannot write stats.jsonl in " + out);
+  return Ok{};
+}
 
 int run_render(const RenderArgs& a) {
   const char* cmd = "render";
@@ -67,7 +133,20 @@ int run_render(const RenderArgs& a) {
     return fail(cmd, "--detail-relief: metres in [0, 1000], got " + std::to_string(a.detail_relief), 2);
   if (a.width < 16 || a.height < 16 || a.width > 8192 || a.height > 8192)
     return fail(cmd, "--width/--height: must be between 16 and 8192", 2);
-  if (!(a.fps > 0.0 && a.fps <= 1000.0)) return fail(cmd, "--fps: must be in (0, 1000]", 2);
+  // At least one frame per 1000 s: path times stay finite and meaningful.
+  if (!(a.fps >= 1e-3 && a.fps <= 1000.0)) return fail(cmd, "--fps: must be in [0.001, 1000]", 2);
+  if (a.camera_given && a.camera.empty()) return fail(cmd, "--camera: empty path", 2);
+  if (a.save_camera_given && a.save_camera.empty()) return fail(cmd, "--save-camera: empty path", 2);
+  if (a.gpu_given && a.gpu_name.empty()) return fail(cmd, "--gpu: empty device name (omit --gpu for the default device)", 2);
+  if (a.cache_slots < 2) return fail(cmd, "--cache-slots: must be at least 2, got " + std::to_string(a.cache_slots), 2);
+  if (a.page_budget < 1 || a.page_budget > a.cache_slots)
+    return fail(cmd, "--page-budget: must be between 1 and --cache-slots (" + std::to_string(a.cache_slots) + ")", 2);
+  if (a.window < 4 || a.window > 4096 || (a.window & (a.window - 1)) != 0)
+    return fail(cmd, "--window: a power of two between 4 and 4096, got " + std::to_string(a.window), 2);
+  // Larger than the image, most rotating positions would fall outside it: feedback would be rare.
+  if (a.feedback_divisor < 1 || a.feedback_divisor > 64 || a.feedback_divisor > std::min(a.width, a.height))
+    return fail(cmd, "--feedback-divisor: must be between 1 and 64 and at most the image's width and height (" +
+                         std::to_string(std::min(a.width, a.height)) + ")", 2);
   if (a.format != "png" && a.format != "exr") return fail(cmd, "--format: png or exr", 2);
   const auto source = vt_source_from_string(a.source);
   if (!source) return fail(cmd, "--source: procedural, stored or hybrid, got '" + a.source + "'", 2);
@@ -89,10 +168,16 @@ int run_render(const RenderArgs& a) {
   // Inputs first: a bad scene or a missing device leaves no output folder behind.
   auto assets = load_scene_and_assets(a.scene);
   if (!assets) return fail(cmd, assets.error().message, 2);
+  const uint32_t max_taps = std::max(1u, assets->desc.vt.border_texels);
+  if (a.anisotropy < 1 || a.anisotropy > max_taps)
+    return fail(cmd, "--anisotropy: must be between 1 and the scene's vt.border_texels (" + std::to_string(max_taps) + ")", 2);
   auto camera = choose_camera(a.camera, assets.value());
   if (!camera) return fail(cmd, camera.error().message, 2);
   const double duration_s = camera->path.end_time() - camera->path.start_time();
   if (!a.save_camera.empty()) {
+    std::error_code ec;
+    if (std::filesystem::exists(std::filesystem::symlink_status(a.save_camera, ec)) && !a.overwrite)
+      return fail(cmd, "--save-camera: " + a.save_camera + " exists; pass --overwrite to replace it", 2);
     const std::string text = camera_file_json(camera->path, camera->lens);
     // A path made for a huge terrain can leave the file format's limits: never write a file
     // that would not load again.
@@ -115,14 +200,17 @@ int run_render(const RenderArgs& a) {
     }
     frames = uint32_t(whole);
   }
+  if (auto s = check_output_folder(a.out, a.overwrite); !s) return fail(cmd, s.error().message, 2);
   auto ctx = gpu_context(a.gpu_name);
   if (!ctx) return fail(cmd, ctx.error().message, 1);
   vk::Context& g = *ctx.value();
-  std::error_code ec;
-  std::filesystem::create_directories(a.out, ec);
-  if (ec || !std::filesystem::is_directory(a.out)) return fail(cmd, "--out: cannot create folder " + a.out, 2);
-  std::ofstream stats_file(std::filesystem::path(a.out) / "stats.jsonl");
-  if (!stats_file) return fail(cmd, "--out: cannot write stats.jsonl in " + a.out, 1);
+  const uint32_t max_layers = g.properties().limits.maxImageArrayLayers;
+  if (a.cache_slots < 2 || a.cache_slots > max_layers)
+    return fail(cmd, "--cache-slots: must be between 2 and " + std::to_string(max_layers) + " (image layers on " +
+                         g.device_name() + ")", 2);
+  // Made at the first frame, when the VT, the renderer and every device resource exist: a run
+  // that cannot start writes nothing.
+  std::ofstream stats_file;
 
   FlythroughOptions fo;
   fo.method = *method;
@@ -155,6 +243,11 @@ int run_render(const RenderArgs& a) {
   std::string write_error;
   auto summary = run_flythrough(g, assets.value(), fo, [&](const FlythroughFrame& fr, const FlythroughViews& views) {
     const VtFrameStats& s = fr.vt;
+    if (!stats_file.is_open())
+      if (auto opened = open_output_folder(a.out, stats_file); !opened) {
+        write_error = opened.error().message;
+        return false;
+      }
     if (fr.index % a.every == 0 || fr.index + 1 == frames) {
       char name[64];
       std::snprintf(name, sizeof(name), "frame_%05u.%s", fr.index, a.format.c_str());
@@ -244,9 +337,12 @@ const CommandRegistrar k_register{
       auto a = std::make_shared<RenderArgs>();
       app.add_option("--scene", a->scene, "Scene JSON file (default: the built-in scene)")->check(CLI::ExistingFile);
       app.add_option("--out", a->out, "Output folder for frames and stats")->capture_default_str();
-      app.add_option("--camera", a->camera, "Camera path file (docs/renderer.md; default: the built-in flythrough)");
-      app.add_option("--save-camera", a->save_camera,
-                     "Write the camera path (the built-in flythrough unless --camera) to this file and stop");
+      const CLI::Option* camera = app.add_option("--camera", a->camera, "Camera path file (docs/renderer.md; default: the built-in flythrough)");
+      const CLI::Option* save_camera = app.add_option(
+          "--save-camera", a->save_camera, "Write the camera path (the built-in flythrough unless --camera) to this file and stop");
+      app.add_flag("--overwrite", a->overwrite,
+                   "Replace the output of an earlier run in --out (its frames, debug images and stats.jsonl; other files "
+                   "stay) and an existing --save-camera file");
       const CLI::Option* frames = app.add_option("--frames", a->frames,
                                                  "Frames to render (default: 120 on the built-in flythrough, the whole --camera path)");
       app.add_option("--every", a->every, "Write every k-th frame")->capture_default_str();
@@ -276,12 +372,15 @@ const CommandRegistrar k_register{
       app.add_option("--detail-relief", a->detail_relief, "Metres of material height relief for the detail normal (0: off)")->capture_default_str();
       app.add_option("--frames-in-flight", a->frames_in_flight, "Frames recorded ahead of the GPU (1: wait for each frame)")->capture_default_str();
       app.add_flag("--sync-loads", a->sync_loads, "Wait for each frame's stored pages (frame-exact comparisons)");
-      app.add_option("--gpu", a->gpu_name, "Vulkan device name substring or index");
+      const CLI::Option* gpu = app.add_option("--gpu", a->gpu_name, "Vulkan device name substring or index");
       app.add_flag("--quiet", a->quiet, "No progress line");
       app.add_flag("--debug", a->debug, "With each written frame, also write the cache atlas, page table and feedback images");
       app.add_flag("--debug-mips", a->debug_mips, "Colour every texel by the mip of its data (red 0, green 1, yellow 2, blue 3...)");
-      return [a, frames] {
+      return [a, frames, camera, save_camera, gpu] {
         a->frames_given = frames->count() > 0;
+        a->camera_given = camera->count() > 0;
+        a->save_camera_given = save_camera->count() > 0;
+        a->gpu_given = gpu->count() > 0;
         return run_render(*a);
       };
     }};
