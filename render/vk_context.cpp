@@ -476,6 +476,26 @@ Buffer Context::create_buffer(VkDeviceSize size, VkBufferUsageFlags usage, bool 
   return b;
 }
 
+namespace {
+// A 2D (array) image, optimal tiling, one sample, exclusive, undefined initial layout: every
+// image this project makes.
+VkImageCreateInfo image_create_info(VkFormat format, uint32_t width, uint32_t height, uint32_t layers,
+                                    VkImageUsageFlags usage, uint32_t mip_levels) {
+  auto ici = init<VkImageCreateInfo>(VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO);
+  ici.imageType = VK_IMAGE_TYPE_2D;
+  ici.format = format;
+  ici.extent = {width, height, 1};
+  ici.mipLevels = mip_levels;
+  ici.arrayLayers = layers;
+  ici.samples = VK_SAMPLE_COUNT_1_BIT;
+  ici.tiling = VK_IMAGE_TILING_OPTIMAL;
+  ici.usage = usage;
+  ici.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
+  ici.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+  return ici;
+}
+}  // namespace
+
 Status Context::check_image_fits(VkFormat format, uint32_t width, uint32_t height, uint32_t layers,
                                  VkImageUsageFlags usage, const std::string& what) const {
   const double mb = 1.0 / 1048576.0;
@@ -491,17 +511,7 @@ Status Context::check_image_fits(VkFormat format, uint32_t width, uint32_t heigh
     return make_error(text);
   }
   // The memory it needs, as the device computes it (creating an image allocates nothing).
-  auto ici = init<VkImageCreateInfo>(VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO);
-  ici.imageType = VK_IMAGE_TYPE_2D;
-  ici.format = format;
-  ici.extent = {width, height, 1};
-  ici.mipLevels = 1;
-  ici.arrayLayers = layers;
-  ici.samples = VK_SAMPLE_COUNT_1_BIT;
-  ici.tiling = VK_IMAGE_TILING_OPTIMAL;
-  ici.usage = usage;
-  ici.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
-  ici.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+  const VkImageCreateInfo ici = image_create_info(format, width, height, layers, usage, 1);
   VkImage probe = VK_NULL_HANDLE;
   if (vkCreateImage(device_, &ici, nullptr, &probe) != VK_SUCCESS)
     return make_error(what + ": the device cannot create a " + std::to_string(width) + "x" + std::to_string(height) +
@@ -540,17 +550,7 @@ Image Context::create_image(VkFormat format, uint32_t width, uint32_t height, ui
   img.layers_ = layers;
   img.mip_levels_ = mip_levels;
   img.synchronization2_ = features_.synchronization2;
-  auto ici = init<VkImageCreateInfo>(VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO);
-  ici.imageType = VK_IMAGE_TYPE_2D;
-  ici.format = format;
-  ici.extent = {width, height, 1};
-  ici.mipLevels = mip_levels;
-  ici.arrayLayers = layers;
-  ici.samples = VK_SAMPLE_COUNT_1_BIT;
-  ici.tiling = VK_IMAGE_TILING_OPTIMAL;
-  ici.usage = usage;
-  ici.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
-  ici.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+  const VkImageCreateInfo ici = image_create_info(format, width, height, layers, usage, mip_levels);
   TVT_VK_CHECK(vkCreateImage(device_, &ici, nullptr, &img.image_));
 
   VkMemoryRequirements req{};

@@ -205,7 +205,7 @@ int run_render(const RenderArgs& a) {
   if (!ctx) return fail(cmd, ctx.error().message, 1);
   vk::Context& g = *ctx.value();
   const uint32_t max_layers = g.properties().limits.maxImageArrayLayers;
-  if (a.cache_slots < 2 || a.cache_slots > max_layers)
+  if (a.cache_slots > max_layers)  // >= 2 was checked with the flags
     return fail(cmd, "--cache-slots: must be between 2 and " + std::to_string(max_layers) + " (image layers on " +
                          g.device_name() + ")", 2);
   // Made at the first frame, when the VT, the renderer and every device resource exist: a run
