@@ -61,6 +61,19 @@ TEST_F(StoreCli, ShardedBakeMergesToTheSingleBakeAndVerifyFindsACorruptPage) {
   EXPECT_TRUE(single == bytes(path("merged.tvt")));  // byte for byte
   EXPECT_FALSE(fs::exists(path("single.tvt.partial")));
 
+  // A finished store is replaced only with --overwrite (a bake may have taken hours).
+  EXPECT_EQ(run(bake_args(path("single.tvt")) + " --shard 1/3"), 2);
+  EXPECT_NE(output_.find("single.tvt exists; pass --overwrite"), std::string::npos) << output_;
+  EXPECT_EQ(run("merge " + path("part0.tvt") + " --out " + path("merged.tvt")), 2);
+  EXPECT_NE(output_.find("merged.tvt exists; pass --overwrite"), std::string::npos) << output_;
+  EXPECT_TRUE(single == bytes(path("single.tvt")));
+  EXPECT_TRUE(single == bytes(path("merged.tvt")));
+  ASSERT_EQ(run("merge " + path("part0.tvt") + " " + path("part2.tvt") + " " + path("part1.tvt") + " --overwrite --out " +
+                path("merged.tvt")),
+            0)
+      << output_;
+  EXPECT_TRUE(single == bytes(path("merged.tvt")));
+
   ASSERT_EQ(run("verify " + path("merged.tvt")), 0) << output_;
   EXPECT_NE(output_.find("85 of 85 pages ok"), std::string::npos) << output_;
   ASSERT_EQ(run("info --json " + path("merged.tvt")), 0) << output_;

@@ -35,6 +35,7 @@ struct BakeArgs {
   int level = 3;
   bool cpu = false;
   bool restart = false;
+  bool overwrite = false;  // replace an existing --out store
   bool quiet = false;
 };
 
@@ -85,6 +86,10 @@ int run_bake(const BakeArgs& a) {
   if (auto s = parse_shard(a.shard, shard_index, shard_count); !s) return fail(cmd, s.error().message, 2);
   const std::filesystem::path out_dir = std::filesystem::absolute(a.out).parent_path();
   if (!std::filesystem::is_directory(out_dir)) return fail(cmd, "--out: folder does not exist: " + out_dir.string(), 2);
+  // A finished store may have taken hours: it is replaced only when asked (an interrupted bake's
+  // <out>.partial is resumed, not refused).
+  if (std::error_code ec; std::filesystem::exists(std::filesystem::symlink_status(a.out, ec)) && !a.overwrite)
+    return fail(cmd, "--out: " + a.out + " exists; pass --overwrite to replace it", 2);
 
   auto assets = load_scene_and_assets(a.scene);
   if (!assets) return fail(cmd, assets.error().message, 2);
@@ -186,6 +191,7 @@ const CommandRegistrar k_register{
       app.add_option("--shard", a->shard, "i/n: bake only part i of n (join the parts with terravt merge)")->capture_default_str();
       app.add_flag("--cpu", a->cpu, "Compose with the double-precision CPU reference instead of the GPU");
       app.add_flag("--restart", a->restart, "Discard an interrupted <out>.partial instead of resuming it");
+      app.add_flag("--overwrite", a->overwrite, "Replace an existing --out store (otherwise an error)");
       app.add_option("--gpu", a->gpu_name, "Vulkan device name substring or index");
       app.add_flag("--quiet", a->quiet, "No progress line");
       return [a] { return run_bake(*a); };

@@ -1,6 +1,7 @@
 // Page-store tools: `terravt merge` (join shard parts into the store a single bake writes),
 // `terravt verify` (every page checked, every problem printed), `terravt info` (config and
 // statistics). Format: docs/page-store.md.
+#include <filesystem>
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -19,9 +20,12 @@ namespace {
 struct MergeArgs {
   std::vector<std::string> parts;
   std::string out;
+  bool overwrite = false;  // replace an existing --out store
 };
 
 int run_merge(const MergeArgs& a) {
+  if (std::error_code ec; std::filesystem::exists(std::filesystem::symlink_status(a.out, ec)) && !a.overwrite)
+    return fail("merge", "--out: " + a.out + " exists; pass --overwrite to replace it", 2);
   auto s = merge_stores(a.parts, a.out);
   if (!s) return fail("merge", s.error().message, 1);
   std::printf("merged %zu parts: %llu pages, %.1f MB -> %s\n", a.parts.size(), (unsigned long long)s->pages,
@@ -34,6 +38,7 @@ const CommandRegistrar k_merge{
       auto a = std::make_shared<MergeArgs>();
       app.add_option("parts", a->parts, "Shard stores, any order")->required()->check(CLI::ExistingFile);
       app.add_option("--out", a->out, "Merged store (written atomically)")->required();
+      app.add_flag("--overwrite", a->overwrite, "Replace an existing --out store (otherwise an error)");
       return [a] { return run_merge(*a); };
     }};
 
