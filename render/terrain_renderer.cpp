@@ -55,8 +55,7 @@ std::optional<VtMipFilter> mip_filter_from_string(std::string_view name) {
   name.remove_prefix(1);
   float band = 0.f;
   const auto [end, ec] = std::from_chars(name.data(), name.data() + name.size(), band);
-  // The comparisons also reject NaN.
-  if (ec != std::errc() || end != name.data() + name.size() || !(band >= 0.f && band <= 1.f)) return std::nullopt;
+  if (ec != std::errc() || end != name.data() + name.size() || !VtMipFilter{band}.valid()) return std::nullopt;
   return VtMipFilter{band};
 }
 
@@ -154,7 +153,7 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
   const VkShaderStageFlags fs = VK_SHADER_STAGE_FRAGMENT_BIT;
   if (options.direct) {
     if (!options.direct->composer) return make_error("terrain renderer: direct inputs need a composer");
-    if (!(options.direct->mip_filter.band >= 0.f && options.direct->mip_filter.band <= 1.f))
+    if (!options.direct->mip_filter.valid())
       return make_error("terrain renderer: direct.mip_filter.band must be in [0, 1], got " +
                         std::to_string(options.direct->mip_filter.band));
     pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_COMPOSE_PARAMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, fs});
@@ -174,7 +173,7 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
     if (v.max_anisotropy < 1 || v.max_anisotropy > max_aniso)
       return make_error("terrain renderer: vt.max_anisotropy must be between 1 and the page border B = " +
                         std::to_string(max_aniso));
-    if (!(v.mip_filter.band >= 0.f && v.mip_filter.band <= 1.f))
+    if (!v.mip_filter.valid())
       return make_error("terrain renderer: vt.mip_filter.band must be in [0, 1], got " + std::to_string(v.mip_filter.band));
     pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_VT_INFO, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, fs});
     pd.bindings.push_back({gpu::TVT_BIND_TERRAIN_VT_ENTRIES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, fs});

@@ -68,6 +68,7 @@ const char* feedback_mode_name(FeedbackMode mode);
 //                 two lookups for about `band` of the samples
 struct VtMipFilter {
   float band = 1.f;  // in [0, 1]
+  bool valid() const { return band >= 0.f && band <= 1.f; }  // false for NaN too
   static const VtMipFilter Trilinear, Bilinear;
   friend bool operator==(const VtMipFilter&, const VtMipFilter&) = default;
 };

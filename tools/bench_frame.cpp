@@ -292,7 +292,7 @@ int run_bench_frame(const BenchFrameArgs& a) {
   if (a.frames < 10 || a.frames > 10000) return fail(cmd, "--frames: must be between 10 and 10000", 2);
   if (a.poses < 1 || a.poses > 100) return fail(cmd, "--poses: must be between 1 and 100", 2);
   if (a.rounds < 1 || a.rounds > 100) return fail(cmd, "--rounds: must be between 1 and 100", 2);
-  if (!(a.brilinear_band >= 0.f && a.brilinear_band <= 1.f)) return fail(cmd, "--brilinear-band: must be in [0, 1]", 2);
+  if (!VtMipFilter{a.brilinear_band}.valid()) return fail(cmd, "--brilinear-band: must be in [0, 1]", 2);
   auto assets = load_scene_and_assets(a.scene);
   if (!assets) return fail(cmd, assets.error().message, 2);
   // Timings compare producers, not first-use loading: read every material up front.
