@@ -81,7 +81,7 @@ Result<std::unique_ptr<FeedbackCompactor>> FeedbackCompactor::create(vk::Context
   pci.sType = VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO;
   pci.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
   pci.queueFamilyIndex = context.queue_family();
-  TVT_VK_CHECK(vkCreateCommandPool(device, &pci, nullptr, &c->command_pool_));
+  TVT_VK_CHECK(vkCreateCommandPool(device, &pci, context.allocation_callbacks(), &c->command_pool_));
 
   const VkDeviceSize list_bytes = sizeof(gpu::TvtFeedbackListHeader) + table_bytes;
   c->slots_.resize(options.ring_size);
@@ -97,7 +97,7 @@ Result<std::unique_ptr<FeedbackCompactor>> FeedbackCompactor::create(vk::Context
     VkFenceCreateInfo fci{};
     fci.sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO;
     fci.flags = VK_FENCE_CREATE_SIGNALED_BIT;
-    TVT_VK_CHECK(vkCreateFence(device, &fci, nullptr, &s.fence));
+    TVT_VK_CHECK(vkCreateFence(device, &fci, context.allocation_callbacks(), &s.fence));
     VkCommandBufferAllocateInfo cai{};
     cai.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO;
     cai.commandPool = c->command_pool_;
@@ -115,8 +115,8 @@ FeedbackCompactor::~FeedbackCompactor() {
   // could hang: wait for the device instead, then nothing of ours is in use.
   context_->wait_idle();
   const VkDevice device = context_->device();
-  for (Slot& s : slots_) vkDestroyFence(device, s.fence, nullptr);
-  if (command_pool_ != VK_NULL_HANDLE) vkDestroyCommandPool(device, command_pool_, nullptr);
+  for (Slot& s : slots_) vkDestroyFence(device, s.fence, context_->allocation_callbacks());
+  if (command_pool_ != VK_NULL_HANDLE) vkDestroyCommandPool(device, command_pool_, context_->allocation_callbacks());
 }
 
 VkFence FeedbackCompactor::record(VkCommandBuffer cmd, const vk::Buffer& feedback, uint64_t frame) {

@@ -20,7 +20,7 @@
 #include <optional>
 #include <vector>
 
-#include "render/vk_context.h"
+#include "gpu/context.h"
 #include "vt/feedback_analysis.h"
 
 namespace tvt {
@@ -62,7 +62,7 @@ class FeedbackCompactor {
   // (vkGetFenceStatus); std::nullopt otherwise (not submitted yet, still running, skipped, or
   // overwritten by frame + ring_size). Never waits. May be called more than once per frame.
   // known_complete: the caller knows the commands that compacted `frame` have completed (the
-  // fence of the command buffer it recorded them into signalled, render/frame_ring.h), so the
+  // fence of the command buffer it recorded them into signalled, gpu/frame_ring.h), so the
   // compactor's own fence, which may signal a moment later, is not consulted.
   std::optional<FeedbackResult> try_read(uint64_t frame, bool known_complete = false);
 

@@ -5,7 +5,7 @@
 
 #include "compose/scene_identity.h"
 #include "render/feedback_compactor.h"
-#include "render/frame_ring.h"
+#include "gpu/frame_ring.h"
 #include "render/terrain_renderer.h"
 #include "render/vt_debug.h"
 

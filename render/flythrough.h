@@ -16,7 +16,7 @@
 #include "render/camera_file.h"
 #include "render/terrain_mesh.h"
 #include "render/terrain_renderer.h"
-#include "render/vk_context.h"
+#include "gpu/context.h"
 #include "render/vt_system.h"
 
 namespace tvt {
@@ -37,7 +37,7 @@ struct FlythroughOptions {
   // of one path request the same pages at the same frames (comparisons, tests). Off: the
   // newest ready feedback, never a wait (what an engine does).
   bool deterministic = false;
-  // Frames recorded ahead of the GPU (render/frame_ring.h): the loop blocks only when the GPU
+  // Frames recorded ahead of the GPU (gpu/frame_ring.h): the loop blocks only when the GPU
   // is this many frames behind. 1: every frame waits for the previous one.
   uint32_t frames_in_flight = 2;
   // The camera path and lens (render/camera_file.h); none: the scene's built-in flythrough with

@@ -15,7 +15,7 @@
 #include "compose/material_culling.h"
 #include "compose/packed_scene.h"
 #include "render/material_uploader.h"
-#include "render/vk_context.h"
+#include "gpu/context.h"
 #include "vt/vt_config.h"
 
 namespace tvt {

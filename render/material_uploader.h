@@ -22,7 +22,7 @@
 
 #include "compose/material_culling.h"
 #include "compose/packed_scene.h"
-#include "render/vk_context.h"
+#include "gpu/context.h"
 
 namespace tvt {
 

@@ -27,7 +27,7 @@ void level_barrier(VkCommandBuffer cmd, const vk::Image& image, uint32_t level, 
 }  // namespace
 
 PlainTexture::~PlainTexture() {
-  if (sampler_ != VK_NULL_HANDLE) vkDestroySampler(context_->device(), sampler_, nullptr);
+  if (sampler_ != VK_NULL_HANDLE) context_->destroy_sampler(sampler_);
 }
 
 uint64_t PlainTexture::bytes() const {
@@ -130,7 +130,7 @@ Result<std::unique_ptr<PlainTexture>> PlainTexture::create(vk::Context& context,
   si.mipmapMode = VK_SAMPLER_MIPMAP_MODE_LINEAR;
   si.addressModeU = si.addressModeV = si.addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
   si.maxLod = VK_LOD_CLAMP_NONE;
-  TVT_VK_CHECK(vkCreateSampler(context.device(), &si, nullptr, &t->sampler_));
+  t->sampler_ = context.create_sampler(si);
   t->seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return t;
 }

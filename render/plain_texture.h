@@ -13,7 +13,7 @@
 #include <memory>
 
 #include "compose/packed_scene.h"
-#include "render/vk_context.h"
+#include "gpu/context.h"
 
 namespace tvt {
 

@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "compose/image.h"
-#include "render/vk_context.h"
+#include "gpu/context.h"
 
 namespace tvt::vk {
 

@@ -19,7 +19,7 @@
 #include <unordered_set>
 #include <vector>
 
-#include "render/vk_context.h"
+#include "gpu/context.h"
 #include "streaming/page_loader.h"
 #include "streaming/page_store.h"
 #include "vt/residency.h"

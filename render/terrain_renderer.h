@@ -21,7 +21,7 @@
 #include "render/plain_texture.h"
 #include "render/render_target.h"
 #include "render/terrain_mesh.h"
-#include "render/vk_context.h"
+#include "gpu/context.h"
 #include "shared/terrain_types.h"
 
 namespace tvt {

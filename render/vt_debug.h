@@ -4,7 +4,7 @@
 #include <cstdint>
 
 #include "compose/image.h"
-#include "render/vk_context.h"
+#include "gpu/context.h"
 #include "vt/page_table.h"
 
 namespace tvt {

@@ -103,12 +103,12 @@ Result<std::unique_ptr<VtSystem>> VtSystem::create(vk::Context& context, const P
   si.mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST;
   si.addressModeU = si.addressModeV = si.addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
   si.maxLod = 0.f;
-  TVT_VK_CHECK(vkCreateSampler(context.device(), &si, nullptr, &v->sampler_));
+  v->sampler_ = context.create_sampler(si);
   return v;
 }
 
 VtSystem::~VtSystem() {
-  if (sampler_ != VK_NULL_HANDLE) vkDestroySampler(context_->device(), sampler_, nullptr);
+  if (sampler_ != VK_NULL_HANDLE) context_->destroy_sampler(sampler_);
 }
 
 void VtSystem::collect_loads() {

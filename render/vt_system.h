@@ -9,7 +9,7 @@
 // of a bad stored page).
 //
 // Frame protocol (single queue). Up to frames_in_flight frames may be on the GPU at once: the
-// caller guarantees (render/frame_ring.h) that frame f - frames_in_flight has completed before
+// caller guarantees (gpu/frame_ring.h) that frame f - frames_in_flight has completed before
 // begin_frame(f); everything a frame's commands read from host memory (table updates, compose
 // jobs, material and stored-page staging) lives in rings of that depth. GPU-side ordering
 // (cache writes after earlier frames' reads, table updates after the composition they map)
@@ -38,7 +38,7 @@
 #include "compose/packed_scene.h"
 #include "render/gpu_composer.h"
 #include "render/stored_producer.h"
-#include "render/vk_context.h"
+#include "gpu/context.h"
 #include "shaders/shared/vt_types.h"
 #include "vt/residency.h"
 

@@ -11,7 +11,7 @@
 #include "compose/packed_scene.h"
 #include "compose/scene.h"
 #include "render/flythrough.h"
-#include "render/frame_ring.h"
+#include "gpu/frame_ring.h"
 #include "render/vt_info.h"
 #include "render/vt_system.h"
 #include "support/gpu_test.h"

@@ -289,19 +289,20 @@ TEST_F(GpuTest, MovedFromHandlesOwnNothingAndMovedToHandlesStillWork) {
   // reported by the validation layer's object tracker and fail TearDown.
 }
 
-TEST_F(GpuTest, UnknownDeviceNameIsAnErrorListingTheAvailableDevices) {
-  ScopedEnv env("TERRAVT_DEVICE", "nonexistent-device");
+TEST_F(GpuTest, UnknownDeviceNameIsAnErrorNamingItsSourceAndListingTheAvailableDevices) {
   vk::ContextOptions options;
   options.validation = true;
+  options.device = "nonexistent-device";
+  options.device_source = "--gpu";
   auto created = vk::Context::create(options);
   ASSERT_FALSE(created.ok());
   const std::string& message = created.error().message;
-  EXPECT_NE(message.find("TERRAVT_DEVICE"), std::string::npos) << message;
+  EXPECT_NE(message.find("--gpu"), std::string::npos) << message;
   EXPECT_NE(message.find("nonexistent-device"), std::string::npos) << message;
   EXPECT_NE(message.find("available devices"), std::string::npos) << message;
   EXPECT_NE(message.find(ctx().device_name()), std::string::npos) << message;
 
-  ScopedEnv index_env("TERRAVT_DEVICE", "99");
+  options.device = "99";
   auto by_bad_index = vk::Context::create(options);
   ASSERT_FALSE(by_bad_index.ok());
   EXPECT_NE(by_bad_index.error().message.find(ctx().device_name()), std::string::npos)
@@ -314,21 +315,18 @@ TEST_F(GpuTest, DeviceIsChosenByCaseInsensitiveSubstringOrByIndex) {
   {
     // A case-changed piece of the shared device's name picks the same device.
     const std::string name = ctx().device_name();
-    const std::string piece = upper(name.substr(0, std::min<size_t>(name.size(), 5)));
-    ScopedEnv env("TERRAVT_DEVICE", piece.c_str());
+    options.device = upper(name.substr(0, std::min<size_t>(name.size(), 5)));
     auto created = vk::Context::create(options);
     ASSERT_TRUE(created.ok()) << created.error().message;
-    EXPECT_EQ((*created)->device_name().substr(0, piece.size()), name.substr(0, piece.size()));
+    EXPECT_EQ((*created)->device_name().substr(0, options.device.size()), name.substr(0, options.device.size()));
     expect_no_validation_messages(**created);
   }
   {
-    // ContextOptions::device (an index here) overrides the environment variable.
     uint32_t n = 0;
     vkEnumeratePhysicalDevices(ctx().instance(), &n, nullptr);
     std::vector<VkPhysicalDevice> devices(n);
     vkEnumeratePhysicalDevices(ctx().instance(), &n, devices.data());
     ASSERT_GE(n, 1u);
-    ScopedEnv env("TERRAVT_DEVICE", "nonexistent-device");
     options.device = "0";
     auto created = vk::Context::create(options);
     ASSERT_TRUE(created.ok()) << created.error().message;
@@ -337,17 +335,12 @@ TEST_F(GpuTest, DeviceIsChosenByCaseInsensitiveSubstringOrByIndex) {
   }
 }
 
-TEST_F(GpuTest, ValidationFollowsTheEnvironmentAndAMissingLayerNamesThePackage) {
-  vk::ContextOptions options;  // validation off unless TERRAVT_VALIDATION says otherwise
+TEST_F(GpuTest, TheLibraryReadsNoEnvironmentVariableAndAMissingLayerNamesThePackage) {
+  vk::ContextOptions options;  // validation off, best device
   {
-    ScopedEnv env("TERRAVT_VALIDATION", "1");
-    auto created = vk::Context::create(options);
-    ASSERT_TRUE(created.ok()) << created.error().message;
-    EXPECT_TRUE((*created)->validation_enabled());
-    expect_no_validation_messages(**created);
-  }
-  {
-    ScopedEnv env("TERRAVT_VALIDATION", "0");
+    // The CLI honours these; the library must not (an engine's environment is its own).
+    ScopedEnv validation("TERRAVT_VALIDATION", "1");
+    ScopedEnv device("TERRAVT_DEVICE", "nonexistent-device");
     auto created = vk::Context::create(options);
     ASSERT_TRUE(created.ok()) << created.error().message;
     EXPECT_FALSE((*created)->validation_enabled());
@@ -356,11 +349,13 @@ TEST_F(GpuTest, ValidationFollowsTheEnvironmentAndAMissingLayerNamesThePackage) 
     // The loader searches only VK_LAYER_PATH for explicit layers: the layer looks uninstalled.
     ScopedEnv env("VK_LAYER_PATH", "/nonexistent-terravt-layer-dir");
     options.validation = true;
+    options.validation_source = "TERRAVT_VALIDATION=1";
     auto created = vk::Context::create(options);
     ASSERT_FALSE(created.ok());
     EXPECT_NE(created.error().message.find("vulkan-validationlayers"), std::string::npos) << created.error().message;
     EXPECT_NE(created.error().message.find("VK_LAYER_KHRONOS_validation"), std::string::npos)
         << created.error().message;
+    EXPECT_NE(created.error().message.find("TERRAVT_VALIDATION=1"), std::string::npos) << created.error().message;
   }
 }
 

@@ -1,5 +1,9 @@
 #include "tools/cli_common.h"
 
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+
 #include "compose/scene.h"
 #include "render/flythrough.h"
 #include "streaming/file_io.h"
@@ -39,8 +43,18 @@ std::string CameraChoice::describe() const {
 }
 
 Result<std::unique_ptr<vk::Context>> gpu_context(const std::string& device) {
+  // The library reads no environment variable: the CLI turns TERRAVT_DEVICE and
+  // TERRAVT_VALIDATION into options, and prints what the device reports.
   vk::ContextOptions options;
-  options.device = device;
+  const char* env_device = std::getenv("TERRAVT_DEVICE");
+  options.device = !device.empty() ? device : (env_device ? env_device : "");
+  options.device_source = !device.empty() ? "--gpu" : "TERRAVT_DEVICE";
+  const char* env_validation = std::getenv("TERRAVT_VALIDATION");
+  options.validation = env_validation && *env_validation && std::strcmp(env_validation, "0") != 0;
+  options.validation_source = "TERRAVT_VALIDATION=1";
+  options.log = [](terravt::LogLevel, std::string_view message) {
+    std::fprintf(stderr, "terravt: %.*s\n", int(message.size()), message.data());
+  };
   return vk::Context::create(options);
 }
 

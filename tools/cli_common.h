@@ -9,7 +9,7 @@
 #include "compose/scene_assets.h"
 #include "render/camera_file.h"
 #include "render/terrain_mesh.h"
-#include "render/vk_context.h"
+#include "gpu/context.h"
 #include "vt/result.h"
 
 namespace tvt::cli {

@@ -1,5 +1,6 @@
 #include "support/gpu_test.h"
 
+#include <cstdlib>
 #include <memory>
 #include <mutex>
 
@@ -37,8 +38,12 @@ class SharedContextEnvironment : public ::testing::Environment {
 vk::Context* shared_gpu_context() {
   Shared& s = shared();
   std::call_once(s.once, [&] {
+    // terravt's library reads no environment variable; the tests honour TERRAVT_DEVICE as the
+    // CLI does, so a machine with several devices can pick one.
     vk::ContextOptions options;
     options.validation = true;
+    if (const char* device = std::getenv("TERRAVT_DEVICE")) options.device = device;
+    options.device_source = "TERRAVT_DEVICE";
     auto created = vk::Context::create(options);
     if (created) {
       s.context = std::move(created).value();

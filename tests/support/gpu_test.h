@@ -6,7 +6,7 @@
 
 #include <string>
 
-#include "render/vk_context.h"
+#include "gpu/context.h"
 
 namespace tvt {
 

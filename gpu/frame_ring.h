@@ -19,7 +19,7 @@
 #include <optional>
 #include <vector>
 
-#include "render/vk_context.h"
+#include "gpu/context.h"
 
 namespace tvt {
 

@@ -1,4 +1,4 @@
-#include "render/frame_ring.h"
+#include "gpu/frame_ring.h"
 
 #include <algorithm>
 #include <chrono>
@@ -23,7 +23,7 @@ Result<std::unique_ptr<FrameRing>> FrameRing::create(vk::Context& context, uint3
   pci.sType = VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO;
   pci.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
   pci.queueFamilyIndex = context.queue_family();
-  TVT_VK_CHECK(vkCreateCommandPool(device, &pci, nullptr, &r->pool_));
+  TVT_VK_CHECK(vkCreateCommandPool(device, &pci, context.allocation_callbacks(), &r->pool_));
 
   // Timestamps: only when the queue family counts them (timestampValidBits > 0).
   uint32_t families = 0;
@@ -38,7 +38,7 @@ Result<std::unique_ptr<FrameRing>> FrameRing::create(vk::Context& context, uint3
     qci.sType = VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO;
     qci.queryType = VK_QUERY_TYPE_TIMESTAMP;
     qci.queryCount = k_queries_per_slot * frames_in_flight;
-    TVT_VK_CHECK(vkCreateQueryPool(device, &qci, nullptr, &r->queries_));
+    TVT_VK_CHECK(vkCreateQueryPool(device, &qci, context.allocation_callbacks(), &r->queries_));
     r->timestamps_ = context.create_buffer(sizeof(uint64_t) * k_queries_per_slot * frames_in_flight,
                                            VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
   }
@@ -48,7 +48,7 @@ Result<std::unique_ptr<FrameRing>> FrameRing::create(vk::Context& context, uint3
     VkFenceCreateInfo fci{};
     fci.sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO;
     fci.flags = VK_FENCE_CREATE_SIGNALED_BIT;
-    TVT_VK_CHECK(vkCreateFence(device, &fci, nullptr, &s.fence));
+    TVT_VK_CHECK(vkCreateFence(device, &fci, context.allocation_callbacks(), &s.fence));
     VkCommandBufferAllocateInfo cai{};
     cai.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO;
     cai.commandPool = r->pool_;
@@ -65,9 +65,9 @@ FrameRing::~FrameRing() {
   // than for the fences.
   context_->wait_idle();
   const VkDevice device = context_->device();
-  for (Slot& s : slots_) vkDestroyFence(device, s.fence, nullptr);
-  if (queries_ != VK_NULL_HANDLE) vkDestroyQueryPool(device, queries_, nullptr);
-  if (pool_ != VK_NULL_HANDLE) vkDestroyCommandPool(device, pool_, nullptr);
+  for (Slot& s : slots_) vkDestroyFence(device, s.fence, context_->allocation_callbacks());
+  if (queries_ != VK_NULL_HANDLE) vkDestroyQueryPool(device, queries_, context_->allocation_callbacks());
+  if (pool_ != VK_NULL_HANDLE) vkDestroyCommandPool(device, pool_, context_->allocation_callbacks());
 }
 
 std::optional<FrameTiming> FrameRing::collect(Slot& slot, uint32_t index) {

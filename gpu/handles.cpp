@@ -1,9 +1,9 @@
-// Move-only RAII handles of render/vk_context.h: a moved-from object owns nothing; reset()
+// Move-only RAII handles of gpu/context.h: a moved-from object owns nothing; reset()
 // frees in reverse creation order. Move construction is move assignment into the empty
 // (default-initialised) object, so each class lists its members once per direction.
 #include <utility>
 
-#include "render/vk_context.h"
+#include "gpu/context.h"
 
 namespace tvt::vk {
 
@@ -13,6 +13,7 @@ Buffer& Buffer::operator=(Buffer&& o) noexcept {
   if (this != &o) {
     reset();
     device_ = std::exchange(o.device_, VK_NULL_HANDLE);
+    alloc_ = std::exchange(o.alloc_, nullptr);
     buffer_ = std::exchange(o.buffer_, VK_NULL_HANDLE);
     memory_ = std::exchange(o.memory_, VK_NULL_HANDLE);
     size_ = std::exchange(o.size_, 0);
@@ -25,10 +26,11 @@ Buffer::~Buffer() { reset(); }
 
 void Buffer::reset() {
   if (device_) {
-    if (buffer_) vkDestroyBuffer(device_, buffer_, nullptr);
-    if (memory_) vkFreeMemory(device_, memory_, nullptr);  // unmaps implicitly
+    if (buffer_) vkDestroyBuffer(device_, buffer_, alloc_);
+    if (memory_) vkFreeMemory(device_, memory_, alloc_);  // unmaps implicitly
   }
   device_ = VK_NULL_HANDLE;
+  alloc_ = nullptr;
   buffer_ = VK_NULL_HANDLE;
   memory_ = VK_NULL_HANDLE;
   size_ = 0;
@@ -41,6 +43,7 @@ Image& Image::operator=(Image&& o) noexcept {
   if (this != &o) {
     reset();
     device_ = std::exchange(o.device_, VK_NULL_HANDLE);
+    alloc_ = std::exchange(o.alloc_, nullptr);
     image_ = std::exchange(o.image_, VK_NULL_HANDLE);
     view_ = std::exchange(o.view_, VK_NULL_HANDLE);
     memory_ = std::exchange(o.memory_, VK_NULL_HANDLE);
@@ -58,11 +61,12 @@ Image::~Image() { reset(); }
 
 void Image::reset() {
   if (device_) {
-    if (view_) vkDestroyImageView(device_, view_, nullptr);
-    if (image_) vkDestroyImage(device_, image_, nullptr);
-    if (memory_) vkFreeMemory(device_, memory_, nullptr);
+    if (view_) vkDestroyImageView(device_, view_, alloc_);
+    if (image_) vkDestroyImage(device_, image_, alloc_);
+    if (memory_) vkFreeMemory(device_, memory_, alloc_);
   }
   device_ = VK_NULL_HANDLE;
+  alloc_ = nullptr;
   image_ = VK_NULL_HANDLE;
   view_ = VK_NULL_HANDLE;
   memory_ = VK_NULL_HANDLE;
@@ -77,6 +81,7 @@ PipelineHandles& PipelineHandles::operator=(PipelineHandles&& o) noexcept {
   if (this != &o) {
     reset();
     device_ = std::exchange(o.device_, VK_NULL_HANDLE);
+    alloc_ = std::exchange(o.alloc_, nullptr);
     pipeline_ = std::exchange(o.pipeline_, VK_NULL_HANDLE);
     layout_ = std::exchange(o.layout_, VK_NULL_HANDLE);
     set_layout_ = std::exchange(o.set_layout_, VK_NULL_HANDLE);
@@ -88,11 +93,12 @@ PipelineHandles::~PipelineHandles() { reset(); }
 
 void PipelineHandles::reset() {
   if (device_) {
-    if (pipeline_) vkDestroyPipeline(device_, pipeline_, nullptr);
-    if (layout_) vkDestroyPipelineLayout(device_, layout_, nullptr);
-    if (set_layout_) vkDestroyDescriptorSetLayout(device_, set_layout_, nullptr);
+    if (pipeline_) vkDestroyPipeline(device_, pipeline_, alloc_);
+    if (layout_) vkDestroyPipelineLayout(device_, layout_, alloc_);
+    if (set_layout_) vkDestroyDescriptorSetLayout(device_, set_layout_, alloc_);
   }
   device_ = VK_NULL_HANDLE;
+  alloc_ = nullptr;
   pipeline_ = VK_NULL_HANDLE;
   layout_ = VK_NULL_HANDLE;
   set_layout_ = VK_NULL_HANDLE;
@@ -104,6 +110,7 @@ DescriptorSet& DescriptorSet::operator=(DescriptorSet&& o) noexcept {
   if (this != &o) {
     reset();
     device_ = std::exchange(o.device_, VK_NULL_HANDLE);
+    alloc_ = std::exchange(o.alloc_, nullptr);
     pool_ = std::exchange(o.pool_, VK_NULL_HANDLE);
     set_ = std::exchange(o.set_, VK_NULL_HANDLE);
   }
@@ -114,8 +121,9 @@ DescriptorSet::~DescriptorSet() { reset(); }
 
 void DescriptorSet::reset() {
   // Destroying the pool frees the set (the pool has no FREE_DESCRIPTOR_SET_BIT).
-  if (device_ && pool_) vkDestroyDescriptorPool(device_, pool_, nullptr);
+  if (device_ && pool_) vkDestroyDescriptorPool(device_, pool_, alloc_);
   device_ = VK_NULL_HANDLE;
+  alloc_ = nullptr;
   pool_ = VK_NULL_HANDLE;
   set_ = VK_NULL_HANDLE;
 }

@@ -1,0 +1,66 @@
+// One-shot submission for set-up, uploads and tests: run_commands() and upload().
+#include <algorithm>
+#include <cstring>
+
+#include "gpu/context.h"
+
+namespace tvt::vk {
+
+namespace {
+constexpr uint64_t kFenceTimeoutNs = 60ull * 1000 * 1000 * 1000;  // 60 s, then fatal
+constexpr VkDeviceSize kStagingChunkBytes = VkDeviceSize(16) << 20;  // upload() staging size
+}  // namespace
+
+void Context::run_commands(const std::function<void(VkCommandBuffer)>& record) {
+  auto ai = init<VkCommandBufferAllocateInfo>(VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO);
+  ai.commandPool = command_pool_;
+  ai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+  ai.commandBufferCount = 1;
+  VkCommandBuffer cmd = VK_NULL_HANDLE;
+  TVT_VK_CHECK(vkAllocateCommandBuffers(device_, &ai, &cmd));
+  auto bi = init<VkCommandBufferBeginInfo>(VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO);
+  bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+  TVT_VK_CHECK(vkBeginCommandBuffer(cmd, &bi));
+  record(cmd);
+  TVT_VK_CHECK(vkEndCommandBuffer(cmd));
+
+  auto fci = init<VkFenceCreateInfo>(VK_STRUCTURE_TYPE_FENCE_CREATE_INFO);
+  VkFence fence = VK_NULL_HANDLE;
+  TVT_VK_CHECK(vkCreateFence(device_, &fci, alloc_, &fence));
+  auto si = init<VkSubmitInfo>(VK_STRUCTURE_TYPE_SUBMIT_INFO);
+  si.commandBufferCount = 1;
+  si.pCommandBuffers = &cmd;
+  TVT_VK_CHECK(vkQueueSubmit(queue_, 1, &si, fence));
+  const VkResult r = vkWaitForFences(device_, 1, &fence, VK_TRUE, kFenceTimeoutNs);
+  if (r == VK_TIMEOUT) {
+    fatal(__FILE__, __LINE__, "vkWaitForFences", "run_commands: the GPU did not finish within 60 s (hang or device lost)");
+  }
+  TVT_VK_CHECK(r);
+  vkDestroyFence(device_, fence, alloc_);
+  vkFreeCommandBuffers(device_, command_pool_, 1, &cmd);
+}
+
+void Context::upload(const Buffer& dst, const void* data, VkDeviceSize bytes, VkDeviceSize dst_offset) {
+  if (bytes == 0) return;
+  TVT_CHECK(dst.handle() != VK_NULL_HANDLE && data != nullptr);
+  TVT_CHECK(dst_offset <= dst.size() && bytes <= dst.size() - dst_offset);
+  const VkDeviceSize chunk = std::min(bytes, kStagingChunkBytes);
+  Buffer staging = create_buffer(chunk, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true);
+  const auto* src = static_cast<const unsigned char*>(data);
+  for (VkDeviceSize done = 0; done < bytes; done += chunk) {
+    const VkDeviceSize n = std::min(chunk, bytes - done);
+    std::memcpy(staging.mapped(), src + done, size_t(n));  // host writes: visible at submit
+    run_commands([&](VkCommandBuffer cmd) {
+      const VkBufferCopy region{0, dst_offset + done, n};
+      vkCmdCopyBuffer(cmd, staging.handle(), dst.handle(), 1, &region);
+      // Make the copy visible to whatever the caller records next (any stage, any access).
+      auto mb = init<VkMemoryBarrier>(VK_STRUCTURE_TYPE_MEMORY_BARRIER);
+      mb.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+      mb.dstAccessMask = VK_ACCESS_MEMORY_READ_BIT | VK_ACCESS_MEMORY_WRITE_BIT;
+      vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, 0, 1, &mb, 0,
+                           nullptr, 0, nullptr);
+    });
+  }
+}
+
+}  // namespace tvt::vk

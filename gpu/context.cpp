@@ -1,0 +1,92 @@
+// The Context: a client's device adopted, or terravt's own made and adopted (see context.h).
+#include "gpu/context.h"
+
+#include <algorithm>
+#include <utility>
+
+#include "gpu/device_setup.h"
+
+namespace tvt::vk {
+
+Result<std::unique_ptr<Context>> Context::adopt(const terravt::DeviceHandles& handles) {
+  if (auto s = terravt::check_device(handles); !s) return make_error(s.error().message);
+  std::unique_ptr<Context> ctx(new Context());
+  ctx->instance_ = handles.instance;
+  ctx->physical_ = handles.physical_device;
+  ctx->device_ = handles.device;
+  ctx->queue_ = handles.queue;
+  ctx->queue_family_ = handles.queue_family;
+  ctx->alloc_ = handles.allocation_callbacks;
+  ctx->log_ = handles.log;
+  ctx->features_ = enabled_features(*handles.enabled_features);
+  vkGetPhysicalDeviceProperties(ctx->physical_, &ctx->properties_);
+  vkGetPhysicalDeviceMemoryProperties(ctx->physical_, &ctx->memory_properties_);
+  auto p11 = init<VkPhysicalDeviceVulkan11Properties>(VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_1_PROPERTIES);
+  auto p2 = init<VkPhysicalDeviceProperties2>(VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2);
+  p2.pNext = &p11;
+  vkGetPhysicalDeviceProperties2(ctx->physical_, &p2);
+  ctx->max_allocation_bytes_ = p11.maxMemoryAllocationSize;
+
+  auto pci = init<VkCommandPoolCreateInfo>(VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO);
+  pci.flags = VK_COMMAND_POOL_CREATE_TRANSIENT_BIT;
+  pci.queueFamilyIndex = ctx->queue_family_;
+  if (VkResult r = vkCreateCommandPool(ctx->device_, &pci, ctx->alloc_, &ctx->command_pool_); r != VK_SUCCESS) {
+    ctx->command_pool_ = VK_NULL_HANDLE;
+    return make_error(std::string("Vulkan: vkCreateCommandPool failed (") + result_name(r) + ")");
+  }
+  return ctx;
+}
+
+Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) {
+  auto owned = OwnedDevice::create(options);
+  if (!owned) return owned.error();
+  auto ctx = adopt(owned.value()->handles());
+  if (!ctx) return ctx.error();
+  ctx.value()->owned_ = std::move(owned.value());
+  return ctx;
+}
+
+Context::~Context() {
+  // terravt's own device: let the GPU finish before anything is destroyed. A client's device
+  // is never waited on: the client guarantees the GPU is done with terravt's objects.
+  if (owned_ && device_) vkDeviceWaitIdle(device_);
+  if (command_pool_) vkDestroyCommandPool(device_, command_pool_, alloc_);
+  owned_.reset();
+}
+
+void Context::log(terravt::LogLevel level, const std::string& message) const {
+  if (log_) log_(level, message);
+}
+
+bool Context::validation_enabled() const { return owned_ && owned_->validation(); }
+
+std::vector<std::string> Context::validation_messages() const {
+  return owned_ ? owned_->messages() : std::vector<std::string>{};
+}
+
+void Context::clear_validation_messages() {
+  if (owned_) owned_->clear_messages();
+}
+
+void Context::wait_idle() { TVT_VK_CHECK(vkDeviceWaitIdle(device_)); }
+
+uint32_t Context::memory_type(uint32_t allowed, VkMemoryPropertyFlags need, VkMemoryPropertyFlags fallback) const {
+  for (VkMemoryPropertyFlags flags : {need, fallback}) {
+    for (uint32_t i = 0; i < memory_properties_.memoryTypeCount; ++i) {
+      if ((allowed & (1u << i)) && (memory_properties_.memoryTypes[i].propertyFlags & flags) == flags) return i;
+    }
+  }
+  fatal(__FILE__, __LINE__, "memory_type", "no Vulkan memory type has the required properties");
+}
+
+VkSampler Context::create_sampler(const VkSamplerCreateInfo& info) {
+  VkSampler sampler = VK_NULL_HANDLE;
+  TVT_VK_CHECK(vkCreateSampler(device_, &info, alloc_, &sampler));
+  return sampler;
+}
+
+void Context::destroy_sampler(VkSampler sampler) {
+  if (sampler != VK_NULL_HANDLE) vkDestroySampler(device_, sampler, alloc_);
+}
+
+}  // namespace tvt::vk
