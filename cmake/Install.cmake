@@ -1,0 +1,29 @@
+# `cmake --install`: libterravt (with its SOVERSION links), the public headers, the CMake package
+# (terravtConfig.cmake, version file, targets in the terravt:: namespace) and a pkg-config file.
+# Nothing else is installed: internal headers and libraries stay in the build tree.
+include(GNUInstallDirs)
+include(CMakePackageConfigHelpers)
+
+target_include_directories(terravt_api_headers INTERFACE $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
+set_target_properties(terravt_api_headers PROPERTIES EXPORT_NAME headers)
+install(TARGETS terravt_lib terravt_api_headers EXPORT terravtTargets
+  LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
+  ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+  RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+install(DIRECTORY ${PROJECT_SOURCE_DIR}/include/terravt DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}
+  FILES_MATCHING PATTERN "*.h")
+install(FILES ${PROJECT_BINARY_DIR}/include/terravt/version.h DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/terravt)
+
+set(TVT_CMAKE_DIR ${CMAKE_INSTALL_LIBDIR}/cmake/terravt)
+install(EXPORT terravtTargets NAMESPACE terravt:: DESTINATION ${TVT_CMAKE_DIR})
+configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/terravtConfig.cmake.in
+  ${PROJECT_BINARY_DIR}/terravtConfig.cmake INSTALL_DESTINATION ${TVT_CMAKE_DIR})
+# 0.x: minor versions may break the API, so only the same minor is compatible.
+write_basic_package_version_file(${PROJECT_BINARY_DIR}/terravtConfigVersion.cmake
+  COMPATIBILITY SameMinorVersion)
+install(FILES ${PROJECT_BINARY_DIR}/terravtConfig.cmake ${PROJECT_BINARY_DIR}/terravtConfigVersion.cmake
+  DESTINATION ${TVT_CMAKE_DIR})
+
+file(RELATIVE_PATH TVT_PC_TO_PREFIX /prefix/${CMAKE_INSTALL_LIBDIR}/pkgconfig /prefix)
+configure_file(${PROJECT_SOURCE_DIR}/cmake/terravt.pc.in ${PROJECT_BINARY_DIR}/terravt.pc @ONLY)
+install(FILES ${PROJECT_BINARY_DIR}/terravt.pc DESTINATION ${CMAKE_INSTALL_LIBDIR}/pkgconfig)

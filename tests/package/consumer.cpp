@@ -1,0 +1,31 @@
+// Uses the installed public API only: version, requirements, and the check of a device that
+// was never handed in (every call must return an error value, never abort).
+#include <terravt/terravt.h>
+
+#include <cstdio>
+#include <cstring>
+
+int main() {
+  const terravt::Version v = terravt::version();
+  if (v.major != TERRAVT_VERSION_MAJOR || v.minor != TERRAVT_VERSION_MINOR || v.patch != TERRAVT_VERSION_PATCH ||
+      std::strcmp(terravt::version_string(), TERRAVT_VERSION_STRING) != 0) {
+    std::printf("FAIL: headers say %s, library says %s\n", TERRAVT_VERSION_STRING, terravt::version_string());
+    return 1;
+  }
+  const terravt::DeviceRequirements r = terravt::device_requirements();
+  int required = 0;
+  for (const terravt::FeatureRequirement& f : r.features) required += f.required ? 1 : 0;
+  if (r.min_api_version < VK_API_VERSION_1_3 || required == 0) {
+    std::printf("FAIL: device_requirements() lists no required feature\n");
+    return 1;
+  }
+  const terravt::Status s = terravt::check_device(terravt::DeviceHandles{});
+  if (s.ok() || s.error().kind != terravt::ErrorKind::invalid_argument ||
+      std::strstr(s.error().message.c_str(), "DeviceHandles::") == nullptr) {
+    std::printf("FAIL: check_device on empty handles: %s\n", s.ok() ? "accepted" : s.error().message.c_str());
+    return 1;
+  }
+  std::printf("terravt %s: %zu features (%d required); empty handles: %s\n", terravt::version_string(),
+              r.features.size(), required, s.error().message.c_str());
+  return 0;
+}
