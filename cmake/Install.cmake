@@ -1,4 +1,5 @@
-# `cmake --install`: libterravt (with its SOVERSION links), the public headers, the CMake package
+# `cmake --install`: libterravt (with its SOVERSION links), the public headers, the GLSL
+# contract (terravt/vt.glsl and the files it includes, under terravt/glsl/), the CMake package
 # (terravtConfig.cmake, version file, targets in the terravt:: namespace) and a pkg-config file.
 # Nothing else is installed: internal headers and libraries stay in the build tree.
 include(GNUInstallDirs)
@@ -12,7 +13,14 @@ install(TARGETS terravt_lib terravt_api_headers EXPORT terravtTargets
   RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/include/terravt DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}
   FILES_MATCHING PATTERN "*.h")
-install(FILES ${PROJECT_BINARY_DIR}/include/terravt/version.h DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/terravt)
+install(FILES ${PROJECT_BINARY_DIR}/include/terravt/version.h ${PROJECT_SOURCE_DIR}/include/terravt/vt.glsl
+  DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/terravt)
+# The GLSL that terravt/vt.glsl includes: the same files terravt's own shaders use.
+install(FILES ${PROJECT_SOURCE_DIR}/shaders/vt_lookup.glsl ${PROJECT_SOURCE_DIR}/shaders/vt_lod.glsl
+  ${PROJECT_SOURCE_DIR}/shaders/vt_sample.glsl DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/terravt/glsl)
+install(FILES ${PROJECT_SOURCE_DIR}/shaders/shared/bridge.h ${PROJECT_SOURCE_DIR}/shaders/shared/hash.h
+  ${PROJECT_SOURCE_DIR}/shaders/shared/page_table_entry.h ${PROJECT_SOURCE_DIR}/shaders/shared/vt_types.h
+  ${PROJECT_SOURCE_DIR}/shaders/shared/feedback_types.h DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/terravt/glsl/shared)
 
 set(TVT_CMAKE_DIR ${CMAKE_INSTALL_LIBDIR}/cmake/terravt)
 install(EXPORT terravtTargets NAMESPACE terravt:: DESTINATION ${TVT_CMAKE_DIR})

@@ -10,7 +10,7 @@
 #include "vt_lod.glsl"
 
 layout(std140, set = 0, binding = TVT_BIND_TERRAIN_FRAME) uniform FrameBuf { TvtTerrainFrame F; };
-layout(std430, set = 0, binding = TVT_BIND_TERRAIN_VT_INFO) readonly buffer VtInfoBuf { TvtVtInfo VT; };
+layout(std430, set = 0, binding = TVT_BIND_TERRAIN_VT_INFO) readonly buffer VtInfoBuf { TvtVtInfo tvt_vt; };
 layout(std140, set = 0, binding = TVT_BIND_TERRAIN_FEEDBACK_PARAMS) uniform FeedbackParams { TvtFeedbackWrite FB; };
 
 layout(constant_id = TVT_TERRAIN_SPEC_MAX_ANISOTROPY) const int k_max_anisotropy = 1;
@@ -22,9 +22,9 @@ layout(location = 0) out uvec2 out_page;  // feedback texel (feedback_types.h), 
 void main() {
   // One texel here spans N full-resolution pixels (the viewport is scaled by exactly 1/N).
   const float to_full = 1.0 / float(FB.divisor);
-  const VtFootprint fp = vt_footprint(dFdx(v_local_texel) * to_full, dFdy(v_local_texel) * to_full, VT.mip_bias,
+  const TvtVtFootprint fp = tvt_vt_footprint(dFdx(v_local_texel) * to_full, dFdy(v_local_texel) * to_full, tvt_vt.mip_bias,
                                       k_max_anisotropy);
   const vec2 whole = floor(v_local_texel);
   const ivec2 ti = ivec2(int(F.anchor_x), int(F.anchor_y)) + ivec2(whole);  // fits: see terrain_fragment.glsl
-  out_page = tvt_feedback_page(ti, tvt_filtered_lod(fp.lod, k_mip_band), VT.mip_count, VT.log2_vt, VT.log2_page);
+  out_page = tvt_feedback_page(ti, tvt_filtered_lod(fp.lod, k_mip_band), tvt_vt.mip_count, tvt_vt.log2_vt, tvt_vt.log2_page);
 }

@@ -67,11 +67,11 @@ struct TerrainFragment {
 // hidden fragments would sample the VT for nothing and report pages nobody sees.
 layout(early_fragment_tests) in;
 #include "shared/vt_types.h"
-layout(std430, set = 0, binding = TVT_BIND_TERRAIN_VT_INFO) readonly buffer VtInfoBuf { TvtVtInfo VT; };
-layout(std430, set = 0, binding = TVT_BIND_TERRAIN_VT_INFO) readonly buffer VtInfoWords { ivec4 vt_info_words[]; };
+layout(std430, set = 0, binding = TVT_BIND_TERRAIN_VT_INFO) readonly buffer VtInfoBuf { TvtVtInfo tvt_vt; };
+layout(std430, set = 0, binding = TVT_BIND_TERRAIN_VT_INFO) readonly buffer VtInfoWords { ivec4 tvt_vt_info_words[]; };
 #define TVT_VT_INFO_WORDS
-layout(std430, set = 0, binding = TVT_BIND_TERRAIN_VT_ENTRIES) readonly buffer VtEntryBuf { uint pt_entries[]; };
-layout(set = 0, binding = TVT_BIND_TERRAIN_VT_CACHE) uniform sampler2DArray vt_cache;
+layout(std430, set = 0, binding = TVT_BIND_TERRAIN_VT_ENTRIES) readonly buffer VtEntryBuf { uint tvt_vt_entries[]; };
+layout(set = 0, binding = TVT_BIND_TERRAIN_VT_CACHE) uniform sampler2DArray tvt_vt_cache;
 #ifdef TVT_TERRAIN_VT_FEEDBACK
 layout(std430, set = 0, binding = TVT_BIND_TERRAIN_FEEDBACK) writeonly buffer FeedbackBuf { uvec2 feedback[]; };
 layout(std140, set = 0, binding = TVT_BIND_TERRAIN_FEEDBACK_PARAMS) uniform FeedbackParams { TvtFeedbackWrite FB; };
@@ -92,9 +92,9 @@ layout(constant_id = TVT_TERRAIN_SPEC_MIP_BAND) const float k_mip_band = 1.0;
 #ifdef TVT_TERRAIN_VT_PROBE
 // Distance in data-mip texels from the lookup's sample point to the nearest edge of the page
 // payload: below 1/2 the bilinear taps read border texels. -1 without data.
-float vt_edge_distance(VtLookup l) {
+float vt_edge_distance(TvtVtLookup l) {
   if (!l.valid) return -1.0;
-  const float b = float(VT.border_texels), e = float(VT.slot_texels - VT.border_texels);
+  const float b = float(tvt_vt.border_texels), e = float(tvt_vt.slot_texels - tvt_vt.border_texels);
   return min(min(l.local.x - b, l.local.y - b), min(e - l.local.x, e - l.local.y));
 }
 
@@ -103,11 +103,11 @@ float vt_edge_distance(VtLookup l) {
 vec4 vt_probe(ivec2 ti, vec2 tf, float lod) {
   int m0;
   float t;
-  vt_mip_pair(lod, m0, t);
-  const VtLookup a = vt_lookup32(ti, tf, m0);
+  tvt_vt_mip_pair(lod, m0, t);
+  const TvtVtLookup a = tvt_vt_lookup32(ti, tf, m0);
   float edge = vt_edge_distance(a), coarse_mip = -1.0;
   if (t > 0.0) {
-    const VtLookup b = vt_lookup32(ti, tf, m0 + 1);
+    const TvtVtLookup b = tvt_vt_lookup32(ti, tf, m0 + 1);
     edge = min(edge, vt_edge_distance(b));
     coarse_mip = b.valid ? float(b.data_mip) : -2.0;
   }
@@ -123,22 +123,22 @@ vec4 terrain_albedo(TerrainFragment f) {
   const vec2 whole = floor(f.local_texel);
   const ivec2 ti = ivec2(f.anchor_texel) + ivec2(whole);
   const vec2 tf = f.local_texel - whole;
-  VtFootprint fp = vt_footprint(f.dtexel_dx, f.dtexel_dy, VT.mip_bias, k_max_anisotropy);
+  TvtVtFootprint fp = tvt_vt_footprint(f.dtexel_dx, f.dtexel_dy, tvt_vt.mip_bias, k_max_anisotropy);
   fp.lod = tvt_filtered_lod(fp.lod, k_mip_band);  // outside the band: one mip, which feedback then asks for
 #ifdef TVT_TERRAIN_VT_FEEDBACK
   const uvec2 px = uvec2(gl_FragCoord.xy);
   if (px.x % k_feedback_divisor == FB.offset_x && px.y % k_feedback_divisor == FB.offset_y) {
     const uvec2 fb = px / k_feedback_divisor;
-    if (fb.x < FB.width && fb.y < FB.height) feedback[fb.y * FB.width + fb.x] = vt_feedback_texel(ti, fp.lod);
+    if (fb.x < FB.width && fb.y < FB.height) feedback[fb.y * FB.width + fb.x] = tvt_vt_feedback_texel(ti, fp.lod);
   }
 #endif
 #ifdef TVT_TERRAIN_VT_FEEDBACK_ATTACHMENT
-  g_feedback = vt_feedback_texel(ti, fp.lod);
+  g_feedback = tvt_vt_feedback_texel(ti, fp.lod);
 #endif
 #ifdef TVT_TERRAIN_VT_PROBE
   g_probe = vt_probe(ti, tf, fp.lod);
 #endif
-  return k_max_anisotropy > 1 ? vt_sample_aniso(ti, tf, fp, g_height_gradient) : vt_sample_dh(ti, tf, fp.lod, g_height_gradient);
+  return k_max_anisotropy > 1 ? tvt_vt_sample_aniso(ti, tf, fp, g_height_gradient) : tvt_vt_sample_dh(ti, tf, fp.lod, g_height_gradient);
 }
 #elif defined(TVT_TERRAIN_DIRECT)
 #include "shared/compose_types.h"
@@ -164,8 +164,8 @@ vec4 direct_texel(i64vec2 i, int mip) {
 }
 
 // Bilinear between the four texel centres around the position, weighted as the VT's
-// hardware bilinear fetch weights them (vt_lookup's in-page coordinate minus 1/2).
-// dh: the gradient of the filtered alpha per level-0 texel, as vt_height_gradient() gives it.
+// hardware bilinear fetch weights them (tvt_vt_lookup's in-page coordinate minus 1/2).
+// dh: the gradient of the filtered alpha per level-0 texel, as tvt_vt_height_gradient() gives it.
 vec4 direct_bilinear(i64vec2 ti, vec2 tf, int mip, out vec2 dh) {
   const int64_t m = int64_t(mip);
   const i64vec2 xi = ti >> m;
@@ -180,15 +180,15 @@ vec4 direct_bilinear(i64vec2 ti, vec2 tf, int mip, out vec2 dh) {
 }
 
 // Direct splatting at matched LOD: the composition evaluated at the texel centres of the
-// mip(s) the VT's LOD selects (vt_lod_iso, no bias, the same mip filter) and filtered as
-// vt_sample_dh() filters the cache: bilinear within a mip, linear across two (trilinear). The
+// mip(s) the VT's LOD selects (tvt_vt_lod_iso, no bias, the same mip filter) and filtered as
+// tvt_vt_sample_dh() filters the cache: bilinear within a mip, linear across two (trilinear). The
 // VT image without the cache.
 vec4 terrain_albedo(TerrainFragment f) {
   const vec2 whole = floor(f.local_texel);
   const i64vec2 ti = f.anchor_texel + i64vec2(whole);
   const vec2 tf = f.local_texel - whole;
   const int mip_count = P.log2_vt - findMSB(uint(P.page_texels)) + 1;
-  const float lod = tvt_filtered_lod(vt_lod_iso(f.dtexel_dx, f.dtexel_dy, 0.0), k_mip_band);
+  const float lod = tvt_filtered_lod(tvt_vt_lod_iso(f.dtexel_dx, f.dtexel_dy, 0.0), k_mip_band);
   const float l = clamp(lod, 0.0, float(mip_count - 1));
   const int m0 = int(floor(l));
   const float t = m0 + 1 >= mip_count ? 0.0 : l - float(m0);

@@ -9,9 +9,9 @@
 #include "shared/vt_coord_test_types.h"
 
 layout(local_size_x = 64) in;
-layout(std430, set = 0, binding = TVT_BIND_TEST_COORD_INFO) readonly buffer InfoBuf { TvtVtInfo VT; };
-layout(std430, set = 0, binding = TVT_BIND_TEST_COORD_ENTRIES) readonly buffer EntryBuf { uint pt_entries[]; };
-layout(set = 0, binding = TVT_BIND_TEST_COORD_CACHE) uniform sampler2DArray vt_cache;
+layout(std430, set = 0, binding = TVT_BIND_TEST_COORD_INFO) readonly buffer InfoBuf { TvtVtInfo tvt_vt; };
+layout(std430, set = 0, binding = TVT_BIND_TEST_COORD_ENTRIES) readonly buffer EntryBuf { uint tvt_vt_entries[]; };
+layout(set = 0, binding = TVT_BIND_TEST_COORD_CACHE) uniform sampler2DArray tvt_vt_cache;
 layout(std430, set = 0, binding = TVT_BIND_TEST_COORD_QUERIES) readonly buffer QueryBuf { TvtVtQuery queries[]; };
 layout(std430, set = 0, binding = TVT_BIND_TEST_COORD_ANSWERS) writeonly buffer AnswerBuf { TvtVtCoordAnswer answers[]; };
 layout(push_constant) uniform Push { uint count; };
@@ -23,7 +23,7 @@ void main() {
   if (i >= count) return;
   const TvtVtQuery q = queries[i];
   const i64vec2 ti = i64vec2(q.x, q.y);
-  const VtLookup l = vt_lookup(ti, q.frac, q.mip);
+  const TvtVtLookup l = tvt_vt_lookup(ti, q.frac, q.mip);
   TvtVtCoordAnswer a;
   a.valid = l.valid ? 1u : 0u;
   a.slot = l.slot;
@@ -31,11 +31,11 @@ void main() {
   a.pad = 0;
   a.local = l.local;
   a.corner = ivec2(floor(l.local - 0.5));
-  a.filtered = vt_sample_mip(ti, q.frac, q.mip);
-  const int last = VT.slot_texels - 1;
+  a.filtered = tvt_vt_sample_mip(ti, q.frac, q.mip);
+  const int last = tvt_vt.slot_texels - 1;
   for (int k = 0; k < 4; ++k) {
     const ivec2 t = clamp(a.corner + ivec2(k & 1, k >> 1), ivec2(0), ivec2(last));
-    a.quad[k] = packUnorm4x8(texelFetch(vt_cache, ivec3(t, int(l.slot)), 0));
+    a.quad[k] = packUnorm4x8(texelFetch(tvt_vt_cache, ivec3(t, int(l.slot)), 0));
   }
   answers[i] = a;
 }

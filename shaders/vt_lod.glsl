@@ -14,14 +14,14 @@ float tvt_safe_length(vec2 d) {
   return l < TVT_MAX_FOOTPRINT ? l : TVT_MAX_FOOTPRINT;  // NaN fails the comparison too
 }
 
-struct VtFootprint {
+struct TvtVtFootprint {
   float lod;   // mip level to sample (>= 0, not yet clamped to the top mip)
   vec2 axis;   // major axis of the footprint, level-0 texels (the longer derivative)
   int taps;    // samples along `axis` (1: isotropic)
 };
 
 // Isotropic: LOD from the longer derivative (OpenGL's rho = max of the two lengths).
-float vt_lod_iso(vec2 dx, vec2 dy, float bias) {
+float tvt_vt_lod_iso(vec2 dx, vec2 dy, float bias) {
   const float rho = max(tvt_safe_length(dx), tvt_safe_length(dy));
   return max(log2(max(rho, 1e-8)) + bias, 0.0);
 }
@@ -29,11 +29,11 @@ float vt_lod_iso(vec2 dx, vec2 dy, float bias) {
 // Anisotropic footprint (the EXT_texture_filter_anisotropic recipe): N = ceil(major / minor)
 // taps, at most max_taps, spread along the major axis; the LOD comes from major / N, which
 // equals the minor axis when the ratio is within the limit (never coarser than it otherwise).
-// With max_taps = 1 this is exactly vt_lod_iso().
-VtFootprint vt_footprint(vec2 dx, vec2 dy, float bias, int max_taps) {
+// With max_taps = 1 this is exactly tvt_vt_lod_iso().
+TvtVtFootprint tvt_vt_footprint(vec2 dx, vec2 dy, float bias, int max_taps) {
   const float lx = tvt_safe_length(dx), ly = tvt_safe_length(dy);
   const float major = max(lx, ly), minor = min(lx, ly);
-  VtFootprint fp;
+  TvtVtFootprint fp;
   fp.axis = lx >= ly ? dx : dy;
   if (!(major < TVT_MAX_FOOTPRINT)) fp.axis = vec2(0.0);
   // 1e-3: a ratio a rounding error above an integer does not buy another tap.

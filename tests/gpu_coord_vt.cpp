@@ -9,7 +9,7 @@
 // Decoding: the four texels the bilinear filter reads are fetched exactly; each names its own
 // (X, Y) (the block hash makes a texel of the wrong mip or place decode to noise), so the data
 // fixes the texel the sample starts from. Two positions follow:
-//  * address: that texel plus the fraction vt_lookup() hands the sampler — asserted within
+//  * address: that texel plus the fraction tvt_vt_lookup() hands the sampler — asserted within
 //    1/256 texel of the analytic position (the bound);
 //  * filtered: that texel plus the weight the bilinear filter gave its neighbour, read from the
 //    phase channel (255 * weight of the odd texel). The filter quantises weights to
@@ -78,7 +78,7 @@ struct Decoded {
 };
 
 // Decodes one sample: `quad` are the exact texels 00, 10, 01, 11 of the bilinear footprint,
-// `phase` the filtered R and G, `fraction` the footprint position from vt_lookup() (local - 0.5
+// `phase` the filtered R and G, `fraction` the footprint position from tvt_vt_lookup() (local - 0.5
 // minus the first texel), `texels` the VT size at `mip`, (px, py) the expected position.
 Decoded decode_sample(const std::array<uint32_t, 4>& quad, glm::dvec2 phase, glm::dvec2 fraction, int mip,
                       int64_t texels, double px, double py) {

@@ -12,15 +12,50 @@ prefix=$work/prefix
 
 cmake --install "$build" --prefix "$prefix" >/dev/null
 
-# Headers: include/terravt/*.h only; each #include is a standard header, Vulkan, or terravt/.
+# Headers: C++ in include/terravt/*.h, GLSL in terravt/vt.glsl and terravt/glsl/; each C++
+# #include is a standard header, Vulkan, or terravt/.
 headers=$(cd "$prefix/include" && find . -type f | sort)
 echo "installed headers:" $headers
-if find "$prefix/include" -type f ! -path "$prefix/include/terravt/*.h" | grep -q .; then
-  echo "FAIL: something other than include/terravt/*.h was installed"; exit 1
+if find "$prefix/include" -type f ! -path "$prefix/include/terravt/*.h" ! -path "$prefix/include/terravt/vt.glsl" \
+     ! -path "$prefix/include/terravt/glsl/*" | grep -q .; then
+  echo "FAIL: something other than terravt's headers was installed"; exit 1
 fi
-bad=$(grep -rhE '^[[:space:]]*#[[:space:]]*include' "$prefix/include" |
+bad=$(cat "$prefix"/include/terravt/*.h | grep -E '^[[:space:]]*#[[:space:]]*include' |
       grep -vE '#[[:space:]]*include[[:space:]]*(<[a-z_]+>|<vulkan/vulkan\.h>|"terravt/[a-z_]+\.h")' || true)
 if [ -n "$bad" ]; then echo "FAIL: a public header includes something private:"; echo "$bad"; exit 1; fi
+
+# The GLSL contract compiles against the installed include alone, at bindings the client picks.
+cat > "$work/client.frag" <<'GLSL'
+#version 460
+#extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
+#define TERRAVT_VT_SET 2
+#define TERRAVT_VT_BINDING_INFO 5
+#define TERRAVT_VT_BINDING_TABLE 6
+#define TERRAVT_VT_BINDING_CACHE 7
+#include "terravt/vt.glsl"
+layout(location = 0) flat in ivec2 in_texel;
+layout(location = 1) in vec2 in_frac;
+layout(location = 0) out vec4 out_colour;
+layout(location = 1) out uvec2 out_request;
+void main() {
+  const vec2 dx = dFdx(in_frac), dy = dFdy(in_frac);
+  out_colour = terravt_sample(in_texel, in_frac, dx, dy);
+  out_request = terravt_feedback(in_texel, dx, dy);
+}
+GLSL
+glslangValidator -V --target-env vulkan1.3 -I"$prefix/include" "$work/client.frag" -o "$work/client.spv" >/dev/null ||
+  { glslangValidator -V --target-env vulkan1.3 -I"$prefix/include" "$work/client.frag" -o "$work/client.spv"; exit 1; }
+# The bindings are the client's: bindings 5, 6, 7 in the SPIR-V (glslang's reflection lists
+# them; spirv-dis is not needed).
+refl=$(glslangValidator -V --target-env vulkan1.3 -q -I"$prefix/include" "$work/client.frag" -o /dev/null)
+for b in 5 6 7; do echo "$refl" | grep -q "binding $b," || { echo "FAIL: binding $b not in the shader:"; echo "$refl"; exit 1; }; done
+# Without the binding macros the include says what to define.
+sed '/TERRAVT_VT_BINDING/d' "$work/client.frag" > "$work/nomacros.frag"
+if out=$(glslangValidator -V -I"$prefix/include" "$work/nomacros.frag" -o /dev/null 2>&1); then
+  echo "FAIL: vt.glsl compiled without its binding macros"; exit 1
+fi
+echo "$out" | grep -q "define TERRAVT_VT_BINDING_INFO" || { echo "FAIL: no clear error: $out"; exit 1; }
 
 lib=$(find "$prefix" -name 'libterravt.so.*.*.*' | head -n 1)
 [ -n "$lib" ] || { echo "FAIL: no versioned libterravt.so installed"; exit 1; }
