@@ -1,6 +1,7 @@
 // terravt: a virtual-texture backend for terrains on Vulkan. This header includes the whole
 // public API; each part may also be included on its own.
 #pragma once
+#include "terravt/coords.h"
 #include "terravt/device.h"
 #include "terravt/error.h"
 #include "terravt/version.h"
