@@ -68,8 +68,7 @@ Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, c
 
 const MaterialUploader& GpuComposer::all_materials() const {
   const Status s = materials_->upload_all();
-  if (!s) std::fprintf(stderr, "%s\n", s.error().message.c_str());
-  TVT_CHECK(s.ok());
+  if (!s) fatal(__FILE__, __LINE__, "upload_all_materials()", s.error().message.c_str());
   return *materials_;
 }
 
