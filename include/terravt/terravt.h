@@ -5,3 +5,4 @@
 #include "terravt/device.h"
 #include "terravt/error.h"
 #include "terravt/version.h"
+#include "terravt/virtual_texture.h"

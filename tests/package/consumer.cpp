@@ -1,9 +1,11 @@
 // Uses the installed public API only: version, requirements, and the check of a device that
-// was never handed in (every call must return an error value, never abort).
+// was never handed in, by check_device() and VirtualTexture::create() (errors as values, never
+// an abort).
 #include <terravt/terravt.h>
 
 #include <cstdio>
 #include <cstring>
+#include <string>
 
 int main() {
   const terravt::Version v = terravt::version();
@@ -23,6 +25,12 @@ int main() {
   if (s.ok() || s.error().kind != terravt::ErrorKind::invalid_argument ||
       std::strstr(s.error().message.c_str(), "DeviceHandles::") == nullptr) {
     std::printf("FAIL: check_device on empty handles: %s\n", s.ok() ? "accepted" : s.error().message.c_str());
+    return 1;
+  }
+  // The virtual texture refuses a device that was never handed in, as a value.
+  auto vt = terravt::VirtualTexture::create(terravt::DeviceHandles{}, terravt::VirtualTextureDesc{});
+  if (vt.ok() || vt.error().message.find("DeviceHandles::") == std::string::npos) {
+    std::printf("FAIL: VirtualTexture::create on empty handles: %s\n", vt.ok() ? "accepted" : vt.error().message.c_str());
     return 1;
   }
   std::printf("terravt %s: %zu features (%d required); empty handles: %s\n", terravt::version_string(),

@@ -1,0 +1,186 @@
+// terravt::VirtualTexture: the public face of the VT runtime (render/vt_system.h) on an adopted
+// device, with the frame protocol checked (see include/terravt/virtual_texture.h).
+#include "terravt/virtual_texture.h"
+
+#include <algorithm>
+#include <deque>
+#include <string>
+#include <vector>
+
+#include "compose/packed_scene.h"
+#include "compose/scene.h"
+#include "compose/scene_assets.h"
+#include "compose/scene_identity.h"
+#include "gpu/context.h"
+#include "render/vt_system.h"
+#include "streaming/page_store.h"
+
+namespace terravt {
+
+namespace {
+
+Error misuse(std::string message) { return Error{ErrorKind::misuse, std::move(message)}; }
+Error invalid(std::string message) { return Error{ErrorKind::invalid_argument, std::move(message)}; }
+
+std::optional<tvt::VtSource> internal_source(PageSource s) {
+  switch (s) {
+    case PageSource::composed: return tvt::VtSource::procedural;
+    case PageSource::stored: return tvt::VtSource::stored;
+    case PageSource::hybrid: return tvt::VtSource::hybrid;
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+struct VirtualTexture::Impl {
+  VirtualTextureDesc desc;
+  std::unique_ptr<tvt::vk::Context> context;  // declared first: destroyed last
+  tvt::SceneAssets assets;
+  std::unique_ptr<tvt::VtSystem> vt;
+  std::vector<tvt::PageFeedback> feedback;
+  std::optional<uint64_t> last_begun, last_completed;
+  std::deque<uint64_t> in_flight;  // frames begun and not known complete, oldest first
+  bool recorded = true;  // record() followed the last begin_frame()
+  FrameStats stats;
+};
+
+VirtualTexture::VirtualTexture(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+VirtualTexture::~VirtualTexture() = default;
+
+Result<std::unique_ptr<VirtualTexture>> VirtualTexture::create(const DeviceHandles& device,
+                                                               const VirtualTextureDesc& desc) {
+  const auto source = internal_source(desc.source);
+  if (!source) return invalid("VirtualTextureDesc::source: not a PageSource value");
+  const auto method = tvt::method_from_string(desc.method);
+  if (!method) return invalid("VirtualTextureDesc::method: unknown method '" + desc.method + "'");
+  if (desc.source != PageSource::composed && desc.store_file.empty())
+    return invalid("VirtualTextureDesc::store_file: a stored or hybrid source needs a store");
+  if (desc.consumer_stages == 0) return invalid("VirtualTextureDesc::consumer_stages: name at least one stage");
+
+  auto impl = std::make_unique<Impl>();
+  impl->desc = desc;
+  auto context = tvt::vk::Context::adopt(device);
+  if (!context) return Error{ErrorKind::unsupported_device, context.error().message};
+  impl->context = std::move(context.value());
+
+  auto scene = desc.scene_file.empty() ? tvt::Result<tvt::SceneDesc>(tvt::default_scene())
+                                       : tvt::load_scene_file(desc.scene_file);
+  if (!scene) return invalid(scene.error().message);
+  auto assets = tvt::load_scene_assets(scene.value());
+  if (!assets) return invalid(assets.error().message);
+  impl->assets = std::move(assets.value());
+  auto packed = tvt::pack_scene(impl->assets, tvt::options_for(*method));
+  if (!packed) return invalid(packed.error().message);
+
+  tvt::VtSystemOptions o;
+  o.cache_slots = desc.cache_slots;
+  o.page_budget = desc.page_budget;
+  o.window_pages = desc.window_pages;
+  o.frames_in_flight = desc.frames_in_flight;
+  o.source = *source;
+  if (desc.source != PageSource::composed) {
+    auto store = tvt::PageStoreReader::open(desc.store_file);
+    if (!store) return Error{ErrorKind::io, store.error().message};
+    o.store = std::move(store.value());
+    o.scene_hash = tvt::scene_identity(impl->assets.desc, *method);
+  }
+  auto vt = tvt::VtSystem::create(*impl->context, packed.value(), o);
+  if (!vt) return invalid(vt.error().message);
+  impl->vt = std::move(vt.value());
+  return std::unique_ptr<VirtualTexture>(new VirtualTexture(std::move(impl)));
+}
+
+VirtualTextureInfo VirtualTexture::info() const {
+  const tvt::VtConfig& c = impl_->assets.desc.vt;
+  return VirtualTextureInfo{c.log2_size, c.page_texels, c.border_texels, c.mip_count(), impl_->desc.cache_slots};
+}
+
+VirtualTextureBindings VirtualTexture::bindings() const {
+  const tvt::VtSystem& v = *impl_->vt;
+  VirtualTextureBindings b;
+  b.info_buffer = v.info_buffer().handle();
+  b.info_bytes = v.info_buffer().size();
+  b.table_buffer = v.entry_buffer().handle();
+  b.table_bytes = v.entry_buffer().size();
+  b.cache_view = v.cache().view();
+  b.cache_sampler = v.sampler();
+  b.cache_layout = VK_IMAGE_LAYOUT_GENERAL;
+  return b;
+}
+
+Status VirtualTexture::begin_frame(uint64_t frame, std::optional<uint64_t> completed, int64_t camera_texel_x,
+                                   int64_t camera_texel_y, std::span<const PageRequest> requests) {
+  Impl& m = *impl_;
+  const std::string f = std::to_string(frame);
+  if (!m.recorded)
+    return misuse("begin_frame(" + f + "): record() did not follow begin_frame(" + std::to_string(*m.last_begun) + ")");
+  if (m.last_begun && frame <= *m.last_begun)
+    return misuse("begin_frame(" + f + "): frames must increase; frame " + std::to_string(*m.last_begun) +
+                  " was begun already");
+  if (completed) {
+    if (m.last_completed && *completed < *m.last_completed)
+      return misuse("begin_frame(" + f + "): the completed frame went backwards (" + std::to_string(*completed) +
+                    " after " + std::to_string(*m.last_completed) + ")");
+    if (!m.last_begun || *completed > *m.last_begun)
+      return misuse("begin_frame(" + f + "): completed frame " + std::to_string(*completed) + " was never begun");
+  }
+  const std::optional<uint64_t> done = completed ? completed : m.last_completed;
+  // Frames begun and not known complete when this one begins.
+  size_t open = m.in_flight.size();
+  if (done) open = size_t(std::count_if(m.in_flight.begin(), m.in_flight.end(), [&](uint64_t b) { return b > *done; }));
+  if (open + 1 > m.desc.frames_in_flight)
+    return misuse("begin_frame(" + f + "): " + std::to_string(open) + " earlier frame(s) not completed, and at most " +
+                  std::to_string(m.desc.frames_in_flight) + " may be in flight (VirtualTextureDesc::frames_in_flight)");
+
+  const tvt::VtConfig& c = m.assets.desc.vt;
+  m.feedback.clear();
+  for (size_t i = 0; i < requests.size(); ++i) {
+    const PageRequest& r = requests[i];
+    if (r.mip >= c.mip_count() || r.x >= c.pages_per_side(r.mip) || r.y >= c.pages_per_side(r.mip))
+      return invalid("begin_frame(" + f + "): requests[" + std::to_string(i) + "] (mip " + std::to_string(r.mip) +
+                     ", page " + std::to_string(r.x) + ", " + std::to_string(r.y) + ") is not a page of this VT (" +
+                     std::to_string(c.mip_count()) + " mips; mip 0 has " + std::to_string(c.pages_per_side(0)) +
+                     " pages per side)");
+    m.feedback.push_back(tvt::PageFeedback{tvt::PageId{r.mip, r.x, r.y}, std::max(r.weight, 1u)});
+  }
+  const auto clamp_texel = [&](int64_t v) {
+    return uint32_t(std::clamp<int64_t>(v, 0, int64_t(c.size_texels() - 1)));
+  };
+  m.vt->begin_frame(frame, clamp_texel(camera_texel_x), clamp_texel(camera_texel_y), m.feedback);
+  if (done) while (!m.in_flight.empty() && m.in_flight.front() <= *done) m.in_flight.pop_front();
+  m.in_flight.push_back(frame);
+  m.last_begun = frame;
+  m.last_completed = done;
+  m.recorded = false;
+  return Ok{};
+}
+
+Status VirtualTexture::record(VkCommandBuffer cmd) {
+  Impl& m = *impl_;
+  if (m.recorded)
+    return misuse(m.last_begun ? "record(): frame " + std::to_string(*m.last_begun) + " was recorded already"
+                               : std::string("record(): no frame begun (call begin_frame() first)"));
+  if (cmd == VK_NULL_HANDLE) return invalid("record(): cmd is VK_NULL_HANDLE");
+  // Earlier frames' reads by the client's stages end before this frame rewrites what they read.
+  vkCmdPipelineBarrier(cmd, m.desc.consumer_stages, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+                       0, 0, nullptr, 0, nullptr, 0, nullptr);
+  const tvt::Status s = m.vt->record(cmd);
+  m.vt->end_frame();
+  m.recorded = true;
+  // This frame's writes become visible to the client's stages recorded next.
+  tvt::vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+                                   VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT, m.desc.consumer_stages,
+                                   VK_ACCESS_SHADER_READ_BIT);
+  const tvt::VtFrameStats& vs = m.vt->stats();
+  m.stats.produced = uint32_t(m.vt->last_completed().size());
+  m.stats.failed = vs.compose_failed + vs.missing + vs.stored.failed;
+  m.stats.table_updates = vs.table_updates;
+  m.stats.resident = vs.residency.resident;
+  if (!s) return Error{ErrorKind::producer_failed, s.error().message};
+  return Ok{};
+}
+
+const FrameStats& VirtualTexture::stats() const { return impl_->stats; }
+
+}  // namespace terravt

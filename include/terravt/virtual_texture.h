@@ -1,0 +1,120 @@
+// The virtual texture on a client's device: residency, page production into the physical
+// cache and the page table, recorded into the client's command buffers.
+//
+// One frame (the client's render loop, one thread):
+//   vt->begin_frame(frame, completed, camera_texel_x, camera_texel_y, requests);  // CPU only
+//   vt->record(cmd);           // production + page-table update + barriers, into `cmd`
+//   ... the client's passes that sample through terravt/vt.glsl, bound from bindings() ...
+//   submit `cmd` on the queue family given at create(), with the client's own fences
+// `requests` are the pages the client's view wants (from its feedback pass, read back as the
+// client likes, or computed on the CPU); every ancestor of a requested page is requested too.
+//
+// Frames in flight: `frame` increases from call to call; `completed` is the newest frame whose
+// commands the client knows have finished on the GPU (std::nullopt before the first does). At
+// most frames_in_flight frames may be begun and not completed: terravt reuses what older frames
+// read only then. Misuse — frames out of order, `completed` going backwards or not yet begun,
+// too many frames in flight, record() twice or without begin_frame() — is an error
+// (ErrorKind::misuse) and changes nothing.
+//
+// Synchronisation: record() first waits (execution dependency) for reads of the cache, table
+// and description by earlier frames' `consumer_stages`, then writes them with compute and
+// transfer commands, then makes the writes visible to `consumer_stages` of the commands
+// recorded after it in the same queue. The cache stays in VK_IMAGE_LAYOUT_GENERAL.
+// Set-up (create()) uploads the initial page table on DeviceHandles::queue and waits for it.
+//
+// Threading: one thread calls a VirtualTexture at a time. Destroy it only once the GPU has
+// finished every command buffer it recorded into.
+#pragma once
+#include <vulkan/vulkan.h>
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+
+#include "terravt/device.h"
+#include "terravt/error.h"
+#include "terravt/export.h"
+
+namespace terravt {
+
+enum class PageSource {
+  composed,  // every page composed by terravt's compute shader from the scene's materials
+  stored,    // every page read from a baked store (store_file); a missing or bad page falls back to its ancestor
+  hybrid,    // stored where the store has a good page, composed elsewhere
+};
+
+struct VirtualTextureDesc {
+  std::string scene_file;            // JSON scene (docs/scene-format.md); empty: the built-in scene
+  std::string method = "fbpb+dpt2";  // transition method: linear, blendmap, fbpb, dpt1, dpt2, fbpb+dpt2
+  PageSource source = PageSource::composed;
+  std::string store_file;            // the baked store, for stored and hybrid
+  uint32_t cache_slots = 256;        // pages the physical cache holds
+  uint32_t page_budget = 32;         // pages composed per frame at most
+  uint32_t window_pages = 64;        // page-table window per mip, entries per side
+  uint32_t frames_in_flight = 2;     // 1 ... 8
+  // Stages of the client's passes that read the VT (fragment by default; vertex or compute too).
+  VkPipelineStageFlags consumer_stages = VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT;
+};
+
+struct VirtualTextureInfo {
+  uint32_t log2_size = 0;      // V = 2^log2_size level-0 texels per side
+  uint32_t page_texels = 0;    // P, payload texels per page side
+  uint32_t border_texels = 0;  // B, border texels on every side of a page
+  uint32_t mip_count = 0;
+  uint32_t cache_slots = 0;
+};
+
+// What terravt/vt.glsl binds (TERRAVT_VT_BINDING_INFO, _TABLE, _CACHE).
+struct VirtualTextureBindings {
+  VkBuffer info_buffer = VK_NULL_HANDLE;   // storage buffer, whole range
+  VkDeviceSize info_bytes = 0;
+  VkBuffer table_buffer = VK_NULL_HANDLE;  // storage buffer, whole range
+  VkDeviceSize table_bytes = 0;
+  VkImageView cache_view = VK_NULL_HANDLE; // 2D array view of the cache
+  VkSampler cache_sampler = VK_NULL_HANDLE;
+  VkImageLayout cache_layout = VK_IMAGE_LAYOUT_GENERAL;
+};
+
+// One page a view wants: mip, page column and row at that mip; `weight` ranks requests (e.g.
+// the pixels that asked for it).
+struct PageRequest {
+  uint32_t mip = 0, x = 0, y = 0;
+  uint32_t weight = 1;
+};
+
+struct FrameStats {
+  uint32_t produced = 0;       // pages that became resident this frame
+  uint32_t failed = 0;         // pages that could not be produced (their ancestors stand in)
+  uint32_t table_updates = 0;  // page-table entries rewritten
+  uint32_t resident = 0;       // pages in the cache after this frame
+};
+
+class TERRAVT_API VirtualTexture {
+ public:
+  static Result<std::unique_ptr<VirtualTexture>> create(const DeviceHandles& device, const VirtualTextureDesc& desc);
+  ~VirtualTexture();
+  VirtualTexture(const VirtualTexture&) = delete;
+  VirtualTexture& operator=(const VirtualTexture&) = delete;
+
+  VirtualTextureInfo info() const;
+  VirtualTextureBindings bindings() const;
+
+  // CPU only. camera_texel_*: the level-0 texel under the camera (the page-table windows
+  // centre there; clamped to the terrain).
+  Status begin_frame(uint64_t frame, std::optional<uint64_t> completed_frame, int64_t camera_texel_x,
+                     int64_t camera_texel_y, std::span<const PageRequest> requests);
+  // Records this frame's GPU work into `cmd` (a primary command buffer in the recording state,
+  // of the queue family given at create()). A page whose material cannot be loaded fails
+  // (ErrorKind::producer_failed, naming the file); the frame is still complete and usable.
+  Status record(VkCommandBuffer cmd);
+  const FrameStats& stats() const;
+
+ private:
+  struct Impl;
+  explicit VirtualTexture(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace terravt
