@@ -39,7 +39,9 @@ Result<std::unique_ptr<OIIO::ImageInput>> open_input(const std::string& path) {
   std::error_code ec;
   const fs::file_status status = fs::status(path, ec);
   if (!fs::exists(status)) return make_error(path + ": file not found");
-  if (fs::is_directory(status)) return make_error(path + ": is a folder, not an image file");
+  if (fs::is_directory(status)) return make_error(path + ": is a directory, not an image file");
+  // Checked before anything opens it: a FIFO would block the reader, a device never end.
+  if (!fs::is_regular_file(status)) return make_error(path + ": is not a regular file, not an image file");
   if (!std::ifstream(path, std::ios::binary)) return make_error(path + ": cannot be opened for reading");
 
   OIIO::ImageSpec config;
@@ -93,7 +95,11 @@ Status write_atomically(const std::string& path, OIIO::ImageSpec spec, OIIO::Typ
   std::error_code ec;
   if (!fs::is_directory(folder, ec))
     return make_error(path + ": folder '" + folder.string() + "' does not exist");
-  if (fs::is_directory(target, ec)) return make_error(path + ": is a folder, cannot write an image over it");
+  if (fs::is_directory(target, ec)) return make_error(path + ": is a directory, cannot write an image over it");
+  // The rename below would replace a FIFO, socket or device node (as root: /dev/null) with a file.
+  if (const fs::file_status st = fs::symlink_status(target, ec); fs::exists(st) && !fs::is_regular_file(st) &&
+                                                                 !fs::is_symlink(st))
+    return make_error(path + ": is not a regular file, cannot write an image over it");
 
   std::unique_ptr<OIIO::ImageOutput> out = OIIO::ImageOutput::create(path);
   if (!out)

@@ -1,12 +1,16 @@
 // Checked reading of JSON input files (json_check.h).
 #include "compose/json_check.h"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <array>
+#include <cerrno>
+#include <cstring>
 #include <charconv>
 #include <cmath>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 #include <vector>
 
 namespace tvt::json_check {
@@ -68,7 +72,8 @@ class DomBuilder final : public nlohmann::json_sax<json> {
   }
 
  private:
-  // Pointer of the value about to be read (or of the innermost open container).
+  // Pointer of the value about to be read (or of the innermost open container). O(depth):
+  // for error messages only.
   Ptr current() const {
     if (stack_.empty()) return path_;
     if (stack_.back()->is_array()) return path_ / stack_.back()->size();
@@ -109,19 +114,27 @@ class DomBuilder final : public nlohmann::json_sax<json> {
   }
 
   bool open(json container) {
-    const Ptr at = current();
+    if (stack_.size() >= k_max_depth) {
+      error = show_pointer(current()) + ": nested deeper than " + std::to_string(k_max_depth) +
+              " arrays/objects (the limit for input files)";
+      return false;
+    }
+    // The new container's own pointer token; path_ grows and shrinks by one token per level,
+    // so each value costs O(1), not O(depth) (copying whole pointers made deep input quadratic).
+    std::string token;
+    if (!stack_.empty()) token = stack_.back()->is_array() ? std::to_string(stack_.back()->size()) : key_;
     // A child container is only ever referenced while open; its parent gets no new element
     // until it is closed, so the pointer stays valid even inside a vector.
     json* slot = put(std::move(container));
+    if (!stack_.empty()) path_.push_back(std::move(token));
     stack_.push_back(slot);
-    path_ = stack_.size() == 1 ? Ptr() : at;
     have_key_ = false;
     return true;
   }
 
   bool close() {
     stack_.pop_back();
-    if (!path_.empty()) path_ = path_.parent_pointer();
+    if (!path_.empty()) path_.pop_back();
     have_key_ = false;
     return true;
   }
@@ -166,15 +179,48 @@ Result<json> parse(std::string_view text, const std::string& source) {
 
 Result<std::string> read_text_file(const std::string& path, const std::string& what) {
   const std::string cannot = path + ": cannot read " + what + " file: ";
-  std::error_code ec;
-  if (!fs::exists(path, ec)) return make_error(cannot + "file not found");
-  if (fs::is_directory(path, ec)) return make_error(cannot + "it is a directory");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return make_error(cannot + "cannot open it");
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) return make_error(cannot + "read error");
-  return text.str();
+  // O_NONBLOCK: opening a FIFO must not wait for a writer; fstat then refuses anything but a
+  // regular file before a byte is read (a FIFO, device or socket could block or never end).
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) {
+    const int err = errno;
+    if (err == ENOENT || err == ENOTDIR) return make_error(cannot + "file not found");
+    if (err == EISDIR) return make_error(cannot + "it is a directory");
+    return make_error(cannot + "cannot open it (" + std::strerror(err) + ")");
+  }
+  struct Closer {
+    int fd;
+    ~Closer() { ::close(fd); }
+  } closer{fd};
+  struct stat st {};
+  if (::fstat(fd, &st) != 0) return make_error(cannot + "cannot open it (" + std::strerror(errno) + ")");
+  if (S_ISDIR(st.st_mode)) return make_error(cannot + "it is a directory");
+  if (!S_ISREG(st.st_mode)) return make_error(cannot + "it is not a regular file (" + file_kind(st.st_mode) + ")");
+  if (st.st_size > off_t(k_max_text_bytes))
+    return make_error(cannot + "it is " + std::to_string(st.st_size) + " bytes, more than the limit of " +
+                      std::to_string(k_max_text_bytes));
+  std::string text;
+  char buf[65536];
+  for (;;) {
+    const ssize_t n = ::read(fd, buf, sizeof(buf));
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) return make_error(cannot + "read error (" + std::strerror(errno) + ")");
+    if (n == 0) break;
+    text.append(buf, size_t(n));
+    if (text.size() > k_max_text_bytes)
+      return make_error(cannot + "it grew past the limit of " + std::to_string(k_max_text_bytes) + " bytes");
+  }
+  return text;
+}
+
+std::string file_kind(unsigned mode) {
+  if (S_ISDIR(mode)) return "a directory";
+  if (S_ISFIFO(mode)) return "a FIFO";
+  if (S_ISCHR(mode)) return "a character device";
+  if (S_ISBLK(mode)) return "a block device";
+  if (S_ISSOCK(mode)) return "a socket";
+  if (S_ISREG(mode)) return "a regular file";
+  return "not a regular file";
 }
 
 const json* field(const json& object, const char* key) {
@@ -256,9 +302,9 @@ std::string Reader::file(const json& v, const Ptr& at) const {
   fs::path p(v.get<std::string>());
   if (p.is_relative() && !base_dir_.empty()) p = fs::path(base_dir_) / p;
   p = p.lexically_normal();
-  std::error_code ec;
-  const fs::file_status st = fs::status(p, ec);
-  if (ec || !fs::exists(st) || fs::is_directory(st)) fail(at, "file not found: " + p.string(), v);
+  struct stat st {};
+  if (::stat(p.c_str(), &st) != 0) fail(at, "file not found: " + p.string(), v);
+  if (!S_ISREG(st.st_mode)) fail(at, "not a regular file: " + p.string() + " is " + file_kind(st.st_mode), v);
   return p.string();
 }
 

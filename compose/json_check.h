@@ -30,13 +30,23 @@ std::string show_number(double v);
 std::string show_value(const json& v);  // compact, cut at 80 characters
 std::string show_pointer(const Ptr& p);  // "<root>" for the root
 
-// The whole text as a DOM. Errors: "<source>: [<pointer>: ]invalid JSON: ... (line l, column c)";
-// overflowing numbers (1e999) and duplicate keys are reported at their field.
+// Arrays/objects nested deeper than this are refused: the project's files need fewer than 10
+// levels, and a bound keeps hostile input from costing stack or time (docs/scene-format.md).
+constexpr size_t k_max_depth = 64;
+
+// The whole text as a DOM, in time linear in its length. Errors: "<source>: [<pointer>: ]invalid JSON: ... (line l, column c)";
+// overflowing numbers (1e999), duplicate keys and nesting deeper than k_max_depth are reported
+// at their field.
 Result<json> parse(std::string_view text, const std::string& source);
 
-// A whole file's text. Errors: "<path>: cannot read <what> file: file not found" (or "it is a
-// directory", "cannot open it", "read error").
+// A whole file's text, at most k_max_text_bytes. Errors: "<path>: cannot read <what> file: file
+// not found" (or "it is a directory", "it is not a regular file (a FIFO)", "cannot open it",
+// "read error"). Never blocks on a FIFO or reads a device.
+constexpr size_t k_max_text_bytes = size_t(64) << 20;
 Result<std::string> read_text_file(const std::string& path, const std::string& what);
+
+// "a directory", "a FIFO", "a character device", "a block device", "a socket" for a st_mode.
+std::string file_kind(unsigned mode);
 
 // The member `key` of an object, or nullptr.
 const json* field(const json& object, const char* key);

@@ -21,6 +21,11 @@ Result<ImageF> load_heightfield(const SceneDesc& d) {
   if (!h.image_path.empty()) {
     auto img = read_image_float(h.image_path);
     if (!img) return make_error(field(d, "/terrain/heightmap/image") + ": " + img.error().message);
+    // The terrain mesh interpolates between texels: one row or column has no slope to sample.
+    if (img->width < 2 || img->height < 2)
+      return make_error(field(d, "/terrain/heightmap/image") + ": " + h.image_path + ": heightmap is " +
+                        std::to_string(img->width) + " x " + std::to_string(img->height) +
+                        " texels; it needs at least 2 x 2");
     ImageF out(img->width, img->height, 1);
     for (int y = 0; y < out.height; ++y)
       for (int x = 0; x < out.width; ++x) out.at(x, y) = float(clamp01(img->at(x, y, 0)));

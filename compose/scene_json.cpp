@@ -96,10 +96,12 @@ class Parser : public json_check::Reader {
 
   VtConfig vt(const json& v, const Ptr& at) const {
     object(v, at, {"log2_size", "page_texels", "border_texels"});
-    VtConfig c;  // ranges beyond "is a uint32" are checked by validate(VtConfig)
-    if (const json* f = field(v, "log2_size")) c.log2_size = uint(*f, at / "log2_size", 0, k_u32_max);
-    if (const json* f = field(v, "page_texels")) c.page_texels = uint(*f, at / "page_texels", 0, k_u32_max);
-    if (const json* f = field(v, "border_texels")) c.border_texels = uint(*f, at / "border_texels", 0, k_u32_max);
+    // Each field's own range (validate(VtConfig)'s), so a wrong value is told the range it
+    // must be in; how the fields relate (border vs page, page vs size) is validate()'s.
+    VtConfig c;
+    if (const json* f = field(v, "log2_size")) c.log2_size = uint(*f, at / "log2_size", 10, 30);
+    if (const json* f = field(v, "page_texels")) c.page_texels = uint(*f, at / "page_texels", 16, 1024, true);
+    if (const json* f = field(v, "border_texels")) c.border_texels = uint(*f, at / "border_texels", 0, 512);
     return c;
   }
 

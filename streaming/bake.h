@@ -22,7 +22,10 @@ struct BakeProgress {
 struct BakeOptions {
   uint32_t threads = 0;      // compression workers; 0 = hardware_concurrency
   uint32_t batch_pages = 32; // pages asked from the source at once (1..4096)
-  bool resume = true;        // continue `<path>.partial` if it is a prefix of this same bake
+  // true: continue `<path>.partial` if it is a prefix of this same bake; a partial of another
+  // bake (other plan, shard, scene or settings) is an error and stays untouched.
+  // false: discard any partial and start over.
+  bool resume = true;
   uint32_t shard_index = 0, shard_count = 1;
   std::function<void(const BakeProgress&)> progress;  // called after every batch, on the baking thread
   std::function<bool()> cancelled;  // polled between batches; true: stop, keep the .partial (resumable)
@@ -30,7 +33,7 @@ struct BakeOptions {
 struct BakeSummary {
   uint64_t pages = 0, resumed_pages = 0, raw_bytes = 0, stored_bytes = 0, file_bytes = 0;
   double seconds = 0;
-  std::string resume_note;  // why an existing .partial was not resumed (empty: none, or resumed)
+  std::string resume_note;  // why an existing .partial was started over (too short for a header)
 };
 
 // Writes `path` atomically: everything goes to `<path>.partial` (records appended in plan order,

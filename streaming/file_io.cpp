@@ -86,7 +86,7 @@ Result<uint64_t> file_size(int fd, const std::string& path) {
 
 Status lock_exclusive(int fd, const std::string& path) {
   if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
-    if (errno == EWOULDBLOCK) return make_error(path + ": another process is writing it (locked)");
+    if (errno == EWOULDBLOCK) return make_error(path + ": another terravt process holds it (locked)");
     return make_error(path + ": cannot lock: " + errno_text(errno));
   }
   return Ok{};

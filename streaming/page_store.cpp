@@ -140,7 +140,9 @@ std::unique_ptr<PageStoreReader> PageStoreReader::open_collect(const std::string
 std::unique_ptr<PageStoreReader> PageStoreReader::open_impl(const std::string& path, std::vector<std::string>& problems,
                                                             bool collect) {
   const size_t first_problem = problems.size();
-  fileio::UniqueFd fd(::open(path.c_str(), O_RDONLY | O_CLOEXEC));
+  // O_NONBLOCK: a FIFO must not block the open; file_size() then refuses anything but a
+  // regular file (on which O_NONBLOCK changes nothing).
+  fileio::UniqueFd fd(::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC));
   if (fd.get() < 0) {
     problems.push_back(path + ": cannot open page store: " + fileio::errno_text(errno));
     return nullptr;

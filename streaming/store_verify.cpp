@@ -16,7 +16,7 @@ namespace tvt {
 
 Result<VerifyReport> verify_store(const std::string& path, uint32_t threads) {
   {
-    fileio::UniqueFd fd(::open(path.c_str(), O_RDONLY | O_CLOEXEC));
+    fileio::UniqueFd fd(::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC));  // a FIFO must not block
     if (fd.get() < 0) return make_error(path + ": cannot open page store: " + fileio::errno_text(errno));
     if (auto size = fileio::file_size(fd.get(), path); !size) return size.error();
   }

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 
@@ -12,6 +13,39 @@ namespace tvt::store_format {
 
 namespace {
 constexpr size_t k_flush_bytes = size_t(4) << 20;  // write records in chunks of about 4 MiB
+
+std::string hex(uint64_t v) {
+  char buf[24];
+  std::snprintf(buf, sizeof(buf), "%016llx", (unsigned long long)v);
+  return buf;
+}
+
+// What a bake's header says about its plan, for a person: "V = 2^10, 64+4-texel pages, plan of
+// 85 pages (hash ...), shard 0/1".
+std::string plan_text(const uint8_t* h) {
+  return "V = 2^" + std::to_string(get_u32(h + off::log2_size)) + ", " + std::to_string(get_u32(h + off::page_texels)) +
+         "+" + std::to_string(get_u32(h + off::border_texels)) + "-texel pages, plan of " +
+         std::to_string(get_u64(h + off::plan_pages)) + " pages (hash " + hex(get_u64(h + off::plan_hash)) + "), shard " +
+         std::to_string(get_u32(h + off::shard_index)) + "/" + std::to_string(get_u32(h + off::shard_count));
+}
+
+}  // namespace
+
+std::string header_difference(const uint8_t* partial, const uint8_t* wanted) {
+  std::string fields;
+  auto differs = [&](const char* name, size_t at, size_t bytes) {
+    if (std::memcmp(partial + at, wanted + at, bytes) != 0) fields += std::string(fields.empty() ? "" : ", ") + name;
+  };
+  differs("VT", off::log2_size, off::layer_count - off::log2_size);
+  differs("layers", off::layer_count, off::page_bytes - off::layer_count);
+  differs("scene", off::scene_hash, 8);
+  differs("producer", off::producer, k_producer_bytes);
+  differs("zstd level", off::zstd_level, 4);
+  differs("dictionary", off::dict_offset, off::shard_index - off::dict_offset);
+  differs("plan", off::plan_pages, 16);
+  differs("shard", off::shard_index, 8);
+  if (fields.empty()) fields = "header bytes";  // e.g. a damaged header
+  return "it differs in " + fields + " (the partial: " + plan_text(partial) + "; this bake: " + plan_text(wanted) + ")";
 }
 
 Result<StoreWriter> StoreWriter::open(const std::string& path) {
@@ -41,8 +75,10 @@ Result<uint64_t> StoreWriter::resume(const std::array<uint8_t, k_header_bytes>& 
   }
   if (std::memcmp(buf.data(), header.data(), header.size()) != 0 ||
       !std::equal(dictionary.begin(), dictionary.end(), buf.begin() + k_header_bytes)) {
-    note = partial_ + ": written by a different bake (settings, plan or shard differ): started over";
-    return uint64_t(0);
+    // Another bake's work (maybe hours of it) is never thrown away unasked.
+    return make_error(partial_ + ": holds " + std::to_string(file_bytes) + " bytes of another bake, not resumed and left as it is: " +
+                      header_difference(buf.data(), header.data()) +
+                      "; bake that plan again to resume it, or start over without resuming (terravt bake --restart)");
   }
   // Walk the records; keep each one whose header is intact, names the expected page and whose
   // blob is complete with the right hash. Everything after the first bad one is cut off.

@@ -13,6 +13,10 @@
 
 namespace tvt::store_format {
 
+// Which header fields of an in-progress store differ, with both plans: "it differs in plan
+// (the partial: V = 2^10, ..., plan of 85 pages (hash ...), shard 0/1; this bake: ...)".
+std::string header_difference(const uint8_t* partial, const uint8_t* wanted);
+
 class StoreWriter {
  public:
   // Opens (creating if needed) and locks `<path>.partial`; does not change it yet.
@@ -20,8 +24,9 @@ class StoreWriter {
 
   // Keeps the complete records of an existing partial whose header and dictionary are exactly
   // `header` / `dictionary` and whose records are the first pages of `pages`; cuts off the rest.
-  // Returns how many records were kept; 0 with `note` saying why when the partial was of
-  // another bake (the caller then calls start()).
+  // Returns how many records were kept; 0 with `note` saying why when the partial is too short
+  // to hold a header (the caller then calls start()). A partial of another bake is an error that
+  // says how it differs (header_difference()), and is left untouched.
   Result<uint64_t> resume(const std::array<uint8_t, k_header_bytes>& header, std::span<const uint8_t> dictionary,
                           std::span<const PageId> pages, uint64_t page_bytes, std::string& note);
   // Empties the partial and writes the in-progress header and the dictionary.

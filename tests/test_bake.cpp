@@ -154,32 +154,57 @@ TEST_F(BakeTest, TornPartialResumesFromItsCompletePrefix) {
   }
 }
 
-TEST_F(BakeTest, PartialOfAnotherBakeIsNotResumed) {
+// A partial may hold hours of another bake's work: a bake with other settings, another plan or
+// another shard refuses to touch it and says how the two differ; resume = false discards it.
+TEST_F(BakeTest, PartialOfAnotherBakeIsRefusedAndKeptUnlessResumeIsOff) {
   const auto expected = reference();
   const std::string p = path("other.tvt");
   StoreDesc other = desc_;
   other.zstd_level = 5;
   ASSERT_FALSE(bake_store(p, other, plan_, synthetic_source(other), cancel_after(2, 8)).ok());
+  const auto partial = read_bytes(p + ".partial");
+  ASSERT_GT(partial.size(), sf::k_header_bytes);
   auto r = bake_store(p, desc_, plan_, synthetic_source(desc_), BakeOptions{});
-  ASSERT_TRUE(r.ok()) << r.error().message;
-  EXPECT_EQ(r->resumed_pages, 0u);
-  EXPECT_NE(r->resume_note.find("different bake"), std::string::npos) << r->resume_note;
-  EXPECT_EQ(read_bytes(p), expected);
+  ASSERT_FALSE(r.ok());
+  const std::string& m = r.error().message;
+  EXPECT_EQ(m.rfind(p + ".partial: holds " + std::to_string(partial.size()) + " bytes of another bake", 0), 0u) << m;
+  EXPECT_NE(m.find("it differs in zstd level"), std::string::npos) << m;
+  EXPECT_NE(m.find("--restart"), std::string::npos) << m;
+  EXPECT_EQ(read_bytes(p + ".partial"), partial);
+  EXPECT_FALSE(fs::exists(p));
 
-  // Same desc, other shard: not resumed either. resume = false: started over silently.
+  // The same settings over a smaller plan (other mips): the plan is named, with both sizes.
+  BakeRegion fewer;
+  fewer.mip_lo = 2;
+  const auto small_plan = bake_plan(desc_.vt, fewer).value();  // 21 pages
+  auto planned = bake_store(p, other, small_plan, synthetic_source(other), BakeOptions{});
+  ASSERT_FALSE(planned.ok());
+  EXPECT_NE(planned.error().message.find("it differs in plan (the partial: V = 2^10, 64+4-texel pages, plan of 85 pages"),
+            std::string::npos)
+      << planned.error().message;
+  EXPECT_NE(planned.error().message.find("this bake: V = 2^10, 64+4-texel pages, plan of 21 pages"), std::string::npos)
+      << planned.error().message;
+  EXPECT_EQ(read_bytes(p + ".partial"), partial);
+
+  // The same bake resumes it.
+  auto same = bake_store(p, other, plan_, synthetic_source(other), BakeOptions{});
+  ASSERT_TRUE(same.ok()) << same.error().message;
+  EXPECT_GT(same->resumed_pages, 0u);  // every page the cancelled run wrote
+  EXPECT_LT(same->resumed_pages, plan_.size());
+
+  // Another shard's partial is refused too; resume = false starts over.
   BakeOptions shard = cancel_after(1, 8);
   shard.shard_count = 2;
-  ASSERT_FALSE(bake_store(p, desc_, plan_, synthetic_source(desc_), shard).ok());
-  auto again = bake_store(p, desc_, plan_, synthetic_source(desc_), BakeOptions{});
-  ASSERT_TRUE(again.ok());
-  EXPECT_EQ(again->resumed_pages, 0u);
-  ASSERT_FALSE(bake_store(p, desc_, plan_, synthetic_source(desc_), cancel_after(1, 8)).ok());
+  ASSERT_FALSE(bake_store(path("s.tvt"), desc_, plan_, synthetic_source(desc_), shard).ok());
+  auto again = bake_store(path("s.tvt"), desc_, plan_, synthetic_source(desc_), BakeOptions{});
+  ASSERT_FALSE(again.ok());
+  EXPECT_NE(again.error().message.find("it differs in shard"), std::string::npos) << again.error().message;
   BakeOptions fresh;
   fresh.resume = false;
-  auto restarted = bake_store(p, desc_, plan_, synthetic_source(desc_), fresh);
-  ASSERT_TRUE(restarted.ok());
+  auto restarted = bake_store(path("s.tvt"), desc_, plan_, synthetic_source(desc_), fresh);
+  ASSERT_TRUE(restarted.ok()) << restarted.error().message;
   EXPECT_EQ(restarted->resumed_pages, 0u);
-  EXPECT_EQ(read_bytes(p), expected);
+  EXPECT_EQ(read_bytes(path("s.tvt")), expected);
 }
 
 TEST_F(BakeTest, SourceErrorsKeepThePartialAndNeverWriteTheStore) {
@@ -236,7 +261,7 @@ TEST_F(BakeTest, SecondWriterOnTheSamePathIsRefused) {
   };
   auto r = bake_store(p, desc_, plan_, nested, BakeOptions{});
   ASSERT_TRUE(r.ok()) << r.error().message;
-  EXPECT_EQ(inner_error, p + ".partial: another process is writing it (locked)");
+  EXPECT_EQ(inner_error, p + ".partial: another terravt process holds it (locked)");
   EXPECT_EQ(read_bytes(p), reference());
 }
 

@@ -700,7 +700,7 @@ TEST_F(SceneTest, WrongTypeIsRejected) {
   j["vt"]["page_texels"] = "128";
   r = parse(j);
   ASSERT_FALSE(r.ok());
-  EXPECT_TRUE(contains(r.error().message, "bad.json: /vt/page_texels: must be an integer")) << r.error().message;
+  EXPECT_TRUE(contains(r.error().message, "bad.json: /vt/page_texels: must be a power of two in [16, 1024]")) << r.error().message;
   EXPECT_TRUE(contains(r.error().message, "got \"128\"")) << r.error().message;
 
   r = parse_scene("[1, 2]", "bad.json", dir.string());

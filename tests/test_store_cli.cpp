@@ -8,6 +8,7 @@
 #include <fstream>
 #include <iterator>
 
+#include "support/cli.h"
 #include "support/temp_dir.h"
 
 namespace fs = std::filesystem;
@@ -18,26 +19,12 @@ class StoreCli : public ::testing::Test {
  protected:
   void SetUp() override {
     dir_ = tvt::test::fresh_test_dir("tvt_store_cli");
-    std::ifstream in(std::string(TVT_SOURCE_DIR) + "/docs/default-scene.json");
-    std::string json((std::istreambuf_iterator<char>(in)), {});
-    const std::string key = "\"log2_size\": 16";
-    ASSERT_NE(json.find(key), std::string::npos);
-    json.replace(json.find(key), key.size(), "\"log2_size\": 10");
-    scene_ = path("scene.json");
-    std::ofstream(scene_) << json;
+    scene_ = tvt::test::write_small_default_scene(dir_);
   }
   void TearDown() override { fs::remove_all(dir_); }
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
   // Runs terravt; stdout+stderr land in `output_`.
-  int run(const std::string& args) {
-    const std::string log = path("log.txt");
-    const std::string cmd = std::string(TVT_TERRAVT_EXE) + " " + args + " >" + log + " 2>&1";
-    const int status = std::system(cmd.c_str());
-    std::ifstream in(log);
-    output_.assign(std::istreambuf_iterator<char>(in), {});
-    fs::remove(log);
-    return WEXITSTATUS(status);
-  }
+  int run(const std::string& args) { return tvt::test::run_terravt(dir_, args, output_); }
   std::string bake_args(const std::string& out) const {
     return "bake --cpu --quiet --method linear --scene " + scene_ + " --out " + out;
   }

@@ -1,9 +1,21 @@
 #include "tools/cli_common.h"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <OpenImageIO/imageio.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 
+#include "compose/json_check.h"
 #include "compose/scene.h"
 #include "render/flythrough.h"
 #include "streaming/file_io.h"
@@ -60,6 +72,114 @@ Result<std::unique_ptr<vk::Context>> gpu_context(const std::string& device) {
 
 Status write_text_file(const std::string& path, const std::string& text) {
   return fileio::write_file_durable(path, text.data(), text.size());
+}
+
+CLI::Validator finite_range(double lo, double hi) {
+  const std::string range = "[" + json_check::show_number(lo) + ", " + json_check::show_number(hi) + "]";
+  return CLI::Validator(
+      [lo, hi, range](std::string& text) -> std::string {
+        double v = 0;
+        if (!CLI::detail::lexical_cast(text, v)) return "must be a number in " + range + ", got '" + text + "'";
+        if (!std::isfinite(v) || v < lo || v > hi) return "must be a finite number in " + range + ", got " + text;
+        return {};
+      },
+      "FLOAT in " + range);
+}
+
+std::optional<std::string> not_a_regular_file(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return path + ": " + (errno == ENOENT || errno == ENOTDIR ? "file not found" : fileio::errno_text(errno));
+  if (!S_ISREG(st.st_mode)) return path + ": is " + json_check::file_kind(st.st_mode) + ", not a regular file";
+  return std::nullopt;
+}
+
+CLI::Validator regular_file() {
+  return CLI::Validator([](std::string& path) { return not_a_regular_file(path).value_or(std::string()); }, "FILE");
+}
+
+std::optional<std::string> output_file_problem(const std::string& path, bool overwrite) {
+  namespace fs = std::filesystem;
+  if (path.empty()) return "empty path";
+  std::error_code ec;
+  const fs::path p(path);
+  const fs::path folder = p.has_parent_path() ? p.parent_path() : fs::path(".");
+  if (!fs::is_directory(folder, ec)) return "folder does not exist: " + folder.string();
+  struct stat st {};
+  if (::lstat(path.c_str(), &st) != 0) return std::nullopt;  // nothing there: a new file
+  struct stat target {};
+  const bool followed = ::stat(path.c_str(), &target) == 0;  // a dangling link is replaced like a file
+  if (!S_ISLNK(st.st_mode) || followed) {
+    const unsigned mode = S_ISLNK(st.st_mode) ? target.st_mode : st.st_mode;
+    if (!S_ISREG(mode))
+      return path + " is " + json_check::file_kind(mode) + "; terravt writes only regular files and never replaces anything else";
+  }
+  if (!overwrite) return path + " exists; pass --overwrite to replace it";
+  return std::nullopt;
+}
+
+Status check_output_file(const std::string& flag, const std::string& path, bool overwrite) {
+  if (auto why = output_file_problem(path, overwrite)) return make_error(flag + ": " + *why);
+  return Ok{};
+}
+
+CLI::Validator output_file() {
+  return CLI::Validator([](std::string& path) { return output_file_problem(path, true).value_or(std::string()); }, "FILE");
+}
+
+std::string check_image_output(const std::string& flag, const std::string& path, bool must_be_exr) {
+  namespace fs = std::filesystem;
+  const fs::path p(path);
+  const fs::path folder = p.has_parent_path() ? p.parent_path() : fs::path(".");
+  std::error_code ec;
+  if (!fs::is_directory(folder, ec)) return flag + " " + path + ": folder '" + folder.string() + "' does not exist";
+  if (fs::is_directory(p, ec)) return flag + " " + path + ": is a folder";
+  // Never replaced by a file: a FIFO, socket or device node (as root, /dev/null) stays what it is.
+  if (struct stat st {}; ::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode))
+    return flag + " " + path + ": is " + json_check::file_kind(st.st_mode) + "; terravt writes only regular files";
+  std::string ext = p.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  if (must_be_exr && ext != ".exr") return flag + " " + path + ": the meta-texture is an OpenEXR file; use .exr";
+  if (!must_be_exr && (ext.empty() || !OIIO::ImageOutput::create(path)))
+    return flag + " " + path + ": no image writer for extension '" + ext + "' (use .png, .exr, .tif ...)";
+  return {};
+}
+
+Result<OutputLock> OutputLock::acquire(const std::string& flag, const std::string& output) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  // One lock per output however it is spelt ("out", "./out/", a link to it).
+  fs::path target = fs::absolute(fs::path(output), ec).lexically_normal();
+  if (!target.has_filename()) target = target.parent_path();
+  target = fs::weakly_canonical(target, ec);
+  if (ec || target == target.root_path()) return make_error(flag + ": cannot use " + output + " as an output");
+  fs::create_directories(target.parent_path(), ec);
+  if (ec) return make_error(flag + ": cannot create folder " + target.parent_path().string() + " (" + ec.message() + ")");
+  std::string lock_path = target.string() + ".lock";
+  for (int attempt = 0; attempt < 16; ++attempt) {
+    fileio::UniqueFd fd(::open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644));
+    // An existing folder whose parent is not writable (`--out .` in a read-only parent): the
+    // lock goes inside it. Every run on it meets the same permissions, so they agree on the file.
+    if (fd.get() < 0 && (errno == EACCES || errno == EROFS || errno == EPERM) && attempt == 0 &&
+        fs::is_directory(target, ec)) {
+      lock_path = (target / ".terravt.lock").string();
+      fd = fileio::UniqueFd(::open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644));
+    }
+    if (fd.get() < 0) return make_error(flag + ": cannot create lock file " + lock_path + ": " + fileio::errno_text(errno));
+    if (auto s = fileio::lock_exclusive(fd.get(), lock_path); !s)
+      return make_error(flag + ": " + output + " is in use: " + s.error().message +
+                        "; wait for that run to finish or choose another " + flag);
+    // The previous holder removes the file as it lets go: if that happened after open(), this
+    // lock is on a removed file and a third run could lock a new one; take the new one instead.
+    struct stat held {}, named {};
+    if (::fstat(fd.get(), &held) == 0 && ::lstat(lock_path.c_str(), &named) == 0 && held.st_dev == named.st_dev &&
+        held.st_ino == named.st_ino)
+      return OutputLock(lock_path, std::move(fd));
+  }
+  return make_error(flag + ": cannot lock " + lock_path + ": it keeps being replaced");
+}
+
+OutputLock::~OutputLock() {
+  if (fd_.get() >= 0) ::unlink(path_.c_str());  // before unlocking, so no later holder's file is removed
 }
 
 int fail(const char* command, const std::string& message, int code) {

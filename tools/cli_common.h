@@ -6,10 +6,13 @@
 #include <optional>
 #include <string>
 
+#include <CLI/CLI.hpp>
+
 #include "compose/scene_assets.h"
 #include "render/camera_file.h"
 #include "render/terrain_mesh.h"
 #include "gpu/context.h"
+#include "streaming/file_io.h"
 #include "vt/result.h"
 
 namespace tvt::cli {
@@ -36,6 +39,52 @@ Result<std::unique_ptr<vk::Context>> gpu_context(const std::string& device);
 // Writes `text` to `path` durably (fileio::write_file_durable): a failed write leaves any
 // earlier file untouched. Errors name the path.
 Status write_text_file(const std::string& path, const std::string& text);
+
+// CLI11 checks, so every command refuses a bad value up front under the flag's name
+// ("--blur: ..."). finite_range: a real number in [lo, hi]; NaN and infinities are refused
+// (CLI::Range lets NaN through). regular_file: an existing regular file (CLI::ExistingFile
+// also passes FIFOs, devices and sockets, on which a reader blocks or never ends).
+CLI::Validator finite_range(double lo, double hi);
+CLI::Validator regular_file();
+
+// Why `path` cannot be read as a regular input file ("is a directory", "is a FIFO", ...),
+// or nullopt when it can be. Follows symbolic links.
+std::optional<std::string> not_a_regular_file(const std::string& path);
+
+// Checked before a command writes the file `path` for `flag`: its folder exists; an existing
+// directory, FIFO, socket or device is refused even with --overwrite (a file is never put in
+// its place); an existing file (or link) is replaced only with `overwrite`.
+Status check_output_file(const std::string& flag, const std::string& path, bool overwrite);
+// The same without the flag ("x.json is a FIFO; ..."), or nullopt when `path` may be written.
+std::optional<std::string> output_file_problem(const std::string& path, bool overwrite);
+// CLI11 check for an output file that is simply replaced (bench --json): output_file_problem()
+// with overwrite, so a bad path fails before the run instead of after it.
+CLI::Validator output_file();
+
+// An image output for `flag`, checked before any work: its folder exists, it is not a folder
+// or any other non-regular file, and OIIO has a writer for its extension (`must_be_exr`: .exr
+// only). Returns the problem ("--out x.png: folder 'y' does not exist") or "" when usable.
+std::string check_image_output(const std::string& flag, const std::string& path, bool must_be_exr = false);
+
+// Ownership of an output (a folder or a file) by one terravt process at a time: an exclusive
+// flock on "<output>.lock" beside it (fileio::lock_exclusive, the lock a bake takes on its
+// .partial), held until the object dies, which removes the lock file. Folders above the output
+// are created if missing (the lock file needs one); an existing output folder whose parent is
+// read-only holds its lock inside, as .terravt.lock. A second run on the same output is refused:
+// "<flag>: <output> is in use: <output>.lock: another terravt process holds it (locked) ...".
+class OutputLock {
+ public:
+  static Result<OutputLock> acquire(const std::string& flag, const std::string& output);
+  OutputLock(OutputLock&&) noexcept = default;
+  OutputLock& operator=(OutputLock&&) = delete;
+  ~OutputLock();
+  const std::string& path() const { return path_; }
+
+ private:
+  OutputLock(std::string path, fileio::UniqueFd fd) : path_(std::move(path)), fd_(std::move(fd)) {}
+  std::string path_;
+  fileio::UniqueFd fd_;
+};
 
 // Prints "terravt <command>: <message>" to stderr and returns `code`.
 int fail(const char* command, const std::string& message, int code);

@@ -84,20 +84,33 @@ int run_bake(const BakeArgs& a) {
   if (a.batch < 1 || a.batch > 1024) return fail(cmd, "--batch: must be between 1 and 1024", 2);
   uint32_t shard_index = 0, shard_count = 1;
   if (auto s = parse_shard(a.shard, shard_index, shard_count); !s) return fail(cmd, s.error().message, 2);
-  const std::filesystem::path out_dir = std::filesystem::absolute(a.out).parent_path();
-  if (!std::filesystem::is_directory(out_dir)) return fail(cmd, "--out: folder does not exist: " + out_dir.string(), 2);
   // A finished store may have taken hours: it is replaced only when asked (an interrupted bake's
-  // <out>.partial is resumed, not refused).
-  if (std::error_code ec; std::filesystem::exists(std::filesystem::symlink_status(a.out, ec)) && !a.overwrite)
-    return fail(cmd, "--out: " + a.out + " exists; pass --overwrite to replace it", 2);
+  // <out>.partial is resumed, not refused), and never when it is not a regular file.
+  if (auto s = check_output_file("--out", a.out, a.overwrite); !s) return fail(cmd, s.error().message, 2);
+  if (a.dict != "none" && a.dict != "auto")
+    if (auto why = not_a_regular_file(a.dict)) return fail(cmd, "--dict: " + *why, 2);
+  if (!a.save_dict.empty())
+    if (auto s = check_output_file("--save-dict", a.save_dict, a.overwrite); !s) return fail(cmd, s.error().message, 2);
 
   auto assets = load_scene_and_assets(a.scene);
   if (!assets) return fail(cmd, assets.error().message, 2);
   const VtConfig& vt = assets->desc.vt;
   BakeRegion region;
+  // Out-of-range values are refused, not clamped: --mips 0,99 would silently bake every mip.
+  const uint64_t size = vt.size_texels();
+  const uint32_t top = vt.mip_count() - 1;
+  if (!a.mips.empty() && (a.mips[0] > a.mips[1] || a.mips[1] > top))
+    return fail(cmd, "--mips: lo,hi with 0 <= lo <= hi <= " + std::to_string(top) + " (the top mip of this scene's 2^" +
+                         std::to_string(vt.log2_size) + " texels), got " + std::to_string(a.mips[0]) + "," +
+                         std::to_string(a.mips[1]), 2);
   if (!a.region.empty()) {
-    if (a.region[0] < 0 || a.region[1] < 0 || a.region[2] < 1 || a.region[3] < 1)
-      return fail(cmd, "--region: x, y must be >= 0 and width, height >= 1", 2);
+    if (a.region[0] < 0 || a.region[1] < 0 || a.region[2] < 1 || a.region[3] < 1 || uint64_t(a.region[0]) >= size ||
+        uint64_t(a.region[1]) >= size || uint64_t(a.region[2]) > size - uint64_t(a.region[0]) ||
+        uint64_t(a.region[3]) > size - uint64_t(a.region[1]))
+      return fail(cmd, "--region: x,y,width,height must lie inside the " + std::to_string(size) + " x " +
+                           std::to_string(size) + " level-0 texels of this scene (x, y >= 0, width, height >= 1), got " +
+                           std::to_string(a.region[0]) + "," + std::to_string(a.region[1]) + "," +
+                           std::to_string(a.region[2]) + "," + std::to_string(a.region[3]), 2);
     region.x0 = uint64_t(a.region[0]);
     region.y0 = uint64_t(a.region[1]);
     region.x1 = region.x0 + uint64_t(a.region[2]);
@@ -124,23 +137,23 @@ int run_bake(const BakeArgs& a) {
     std::printf("trained a %zu-byte zstd dictionary on %u pages in %.1f s\n", desc.dictionary.size(),
                 std::min<uint32_t>(a.dict_samples, uint32_t(plan->size())), seconds_since(t0));
   } else if (a.dict != "none") {
+    // A regular file (checked above); read errors are results, never stream exceptions.
     std::ifstream f(a.dict, std::ios::binary);
     if (!f) return fail(cmd, "--dict: cannot read " + a.dict, 2);
     desc.dictionary.assign(std::istreambuf_iterator<char>(f), {});
+    if (f.bad()) return fail(cmd, "--dict: cannot read " + a.dict, 2);
     if (desc.dictionary.empty()) return fail(cmd, "--dict: " + a.dict + " is empty", 2);
   }
   if (!a.save_dict.empty()) {
     if (desc.dictionary.empty()) return fail(cmd, "--save-dict: no dictionary (use --dict auto)", 2);
-    std::ofstream f(a.save_dict, std::ios::binary);
-    f.write(reinterpret_cast<const char*>(desc.dictionary.data()), std::streamsize(desc.dictionary.size()));
-    if (!f) return fail(cmd, "--save-dict: cannot write " + a.save_dict, 1);
+    const std::string bytes(desc.dictionary.begin(), desc.dictionary.end());
+    if (auto w = write_text_file(a.save_dict, bytes); !w) return fail(cmd, "--save-dict: " + w.error().message, 1);
   }
 
   std::printf("terravt bake: %s, V = 2^%u, %s, %zu pages in the plan, shard %u/%u = %llu pages, zstd %d%s, %s\n",
               assets->desc.source_path.c_str(), vt.log2_size, a.method.c_str(), plan->size(), shard_index, shard_count,
               (unsigned long long)part.count, a.level, desc.dictionary.empty() ? "" : " + dictionary",
               producers.value()->device_name().c_str());
-  if (a.restart) std::filesystem::remove(a.out + ".partial");
 
   BakeOptions bo;
   bo.threads = a.threads;
@@ -177,7 +190,7 @@ const CommandRegistrar k_register{
     "bake", "Bake pages of the scene into a stored megatexture (zstd page store)", 40, [](CLI::App& app) -> RunFn {
       auto a = std::make_shared<BakeArgs>();
       app.add_option("--out", a->out, "Store file to write (atomically: <out>.partial, then rename)")->required();
-      app.add_option("--scene", a->scene, "Scene JSON file (default: the built-in scene)")->check(CLI::ExistingFile);
+      app.add_option("--scene", a->scene, "Scene JSON file (default: the built-in scene)")->check(regular_file());
       app.add_option("--method", a->method, "Transition method")->capture_default_str();
       app.add_option("--region", a->region, "x,y,width,height in level-0 texels (default: whole VT)")->delimiter(',');
       app.add_option("--mips", a->mips, "lo,hi: mip range (default: all)")->delimiter(',');
@@ -190,8 +203,10 @@ const CommandRegistrar k_register{
       app.add_option("--batch", a->batch, "Pages composed per batch")->capture_default_str();
       app.add_option("--shard", a->shard, "i/n: bake only part i of n (join the parts with terravt merge)")->capture_default_str();
       app.add_flag("--cpu", a->cpu, "Compose with the double-precision CPU reference instead of the GPU");
-      app.add_flag("--restart", a->restart, "Discard an interrupted <out>.partial instead of resuming it");
-      app.add_flag("--overwrite", a->overwrite, "Replace an existing --out store (otherwise an error)");
+      app.add_flag("--restart", a->restart,
+                   "Discard an interrupted <out>.partial instead of resuming it (a partial of another plan, scene or "
+                   "settings is refused without it)");
+      app.add_flag("--overwrite", a->overwrite, "Replace an existing --out store and --save-dict file (otherwise an error)");
       app.add_option("--gpu", a->gpu_name, "Vulkan device name substring or index");
       app.add_flag("--quiet", a->quiet, "No progress line");
       return [a] { return run_bake(*a); };

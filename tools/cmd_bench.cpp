@@ -242,17 +242,17 @@ const CommandRegistrar k_register{
       app.require_subcommand(1);
       auto a = std::make_shared<BenchComposeArgs>();
       CLI::App* c = app.add_subcommand("compose", "Pages/s and Mtexel/s of every method, GPU vs CPU reference");
-      c->add_option("--scene", a->scene, "Scene JSON file (default: the built-in scene)")->check(CLI::ExistingFile);
+      c->add_option("--scene", a->scene, "Scene JSON file (default: the built-in scene)")->check(regular_file());
       c->add_option("--pages", a->pages, "Pages per GPU batch")->capture_default_str();
       c->add_option("--cpu-pages", a->cpu_pages, "Pages per method for the CPU reference")->capture_default_str();
       c->add_option("--repeats", a->repeats, "Interleaved timing rounds (each method keeps its fastest batch)")->capture_default_str();
       c->add_option("--mip", a->mip, "Mip level of the pages")->capture_default_str();
       c->add_option("--gpu", a->gpu_name, "Vulkan device name substring or index");
-      c->add_option("--json", a->json_out, "Also write the figures as JSON");
+      c->add_option("--json", a->json_out, "Also write the figures as JSON")->check(output_file());
       c->add_flag("--skip-cpu", a->skip_cpu, "Do not time the CPU reference");
       auto m = std::make_shared<BenchMipsArgs>();
       CLI::App* mc = app.add_subcommand("mips", "Direct vs supersampled mip composition against the box-filtered ground truth");
-      mc->add_option("--scene", m->scene, "Scene JSON file (default: the built-in scene)")->check(CLI::ExistingFile);
+      mc->add_option("--scene", m->scene, "Scene JSON file (default: the built-in scene)")->check(regular_file());
       mc->add_option("--method", m->method, "Transition method")->capture_default_str();
       mc->add_option("--mips", m->mips, "Mip levels (1..6)")->delimiter(',');
       mc->add_option("--pages", m->pages, "Pages per mip")->capture_default_str();
@@ -262,12 +262,12 @@ const CommandRegistrar k_register{
       CLI::App* fc = app.add_subcommand(
           "frame", "VT frame cost vs plain texture, direct splatting and an untextured pass; feedback variants; "
                    "anisotropy; time-to-sharp; memory vs V");
-      fc->add_option("--scene", fr->scene, "Scene JSON file (default: the built-in scene)")->check(CLI::ExistingFile);
+      fc->add_option("--scene", fr->scene, "Scene JSON file (default: the built-in scene)")->check(regular_file());
       fc->add_option("--methods", fr->methods, "Methods")->delimiter(',');
       fc->add_option("--width", fr->width, "Image width")->capture_default_str();
       fc->add_option("--height", fr->height, "Image height")->capture_default_str();
       fc->add_option("--frames", fr->frames, "Frames of the flythrough")->capture_default_str();
-      fc->add_option("--fps", fr->fps, "Camera path frames per second")->capture_default_str();
+      fc->add_option("--fps", fr->fps, "Camera path frames per second")->check(finite_range(1e-3, 1000.0))->capture_default_str();
       fc->add_option("--cache-slots", fr->cache_slots, "Physical cache pages of the flythrough")->capture_default_str();
       fc->add_option("--page-budget", fr->page_budget, "Pages composed per frame")->capture_default_str();
       fc->add_option("--feedback-divisor", fr->feedback_divisor, "N: feedback at 1/N resolution")->capture_default_str();
@@ -277,7 +277,7 @@ const CommandRegistrar k_register{
       fc->add_option("--anisotropy", fr->anisotropy, "Taps of the anisotropic VT variant")->capture_default_str();
       fc->add_option("--brilinear-band", fr->brilinear_band, "Blend band of the brilinear VT variant (0 bilinear .. 1 trilinear)")
           ->capture_default_str();
-      fc->add_option("--json", fr->json_out, "Also write the figures as JSON");
+      fc->add_option("--json", fr->json_out, "Also write the figures as JSON")->check(output_file());
       fc->add_flag("--static-only", fr->static_only, "Only the steady-state comparison (no flythrough loops)");
       fc->add_option("--gpu", fr->gpu_name, "Vulkan device name substring or index");
       return [a, c, m, mc, fr, fc] {

@@ -313,7 +313,7 @@ const CommandRegistrar k_register{
     "bench-loader", "Stored-page streaming: PageLoader throughput vs zstd decompression of the same pages", 91,
     [](CLI::App& app) -> RunFn {
       auto a = std::make_shared<BenchLoaderArgs>();
-      app.add_option("--store", a->store, "Page store to read")->check(CLI::ExistingFile);
+      app.add_option("--store", a->store, "Page store to read")->check(regular_file());
       app.add_flag("--synthetic", a->synthetic, "Bake a synthetic store into a temporary folder and read that");
       app.add_option("--synthetic-log2-size", a->synthetic_log2_size, "log2 of the synthetic VT size (128-texel pages)")
           ->check(CLI::Range(10, 15))
@@ -322,7 +322,7 @@ const CommandRegistrar k_register{
       app.add_option("--threads", a->threads, "Loader workers and zstd threads for the N-thread runs")->capture_default_str();
       app.add_option("--seconds", a->seconds, "Duration of each run (each also covers every page once)")->capture_default_str();
       app.add_option("--rounds", a->rounds, "Interleaved rounds; each configuration keeps its fastest run")->capture_default_str();
-      app.add_option("--json", a->json_out, "Also write the figures as JSON");
+      app.add_option("--json", a->json_out, "Also write the figures as JSON")->check(output_file());
       return [a] { return run_bench_loader(*a); };
     }};
 

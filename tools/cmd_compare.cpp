@@ -35,6 +35,7 @@ struct CompareArgs {
   std::string camera;  // camera path file (default: the built-in flythrough)
   std::string store;
   std::string gpu_name;
+  bool overwrite = false;  // replace an earlier run's compare.tvt, compare.json, disk_vs_v.svg
   uint32_t frames = 30;
   uint32_t width = 320, height = 180;
   uint32_t cache_slots = 512;
@@ -139,11 +140,47 @@ std::string svg_plot(const std::vector<std::pair<uint32_t, double>>& stored, dou
   return s + "</svg>\n";
 }
 
+// The files a run writes into its --out folder.
+constexpr const char* k_outputs[] = {"compare.tvt", "compare.json", "disk_vs_v.svg"};
+
+// Checked before any work: `out` is a folder or does not exist yet, and holds no earlier run's
+// files unless `overwrite` (never a non-file in their place).
+Status check_compare_folder(const std::string& out, bool overwrite) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (!fs::exists(fs::symlink_status(out, ec))) return Ok{};
+  if (!fs::is_directory(out, ec)) return make_error("--out: " + out + " exists and is not a folder");
+  for (const char* name : k_outputs)
+    if (auto s = check_output_file("--out", (fs::path(out) / name).string(), overwrite); !s) {
+      const std::string& why = s.error().message;
+      return make_error(why.ends_with("pass --overwrite to replace it") ? why + " (an earlier run's output)" : why);
+    }
+  return Ok{};
+}
+
 int run_compare(const CompareArgs& a) {
   const char* cmd = "compare";
   const auto method = method_from_string(a.method);
   if (!method) return fail(cmd, "--method: unknown method '" + a.method + "'", 2);
   if (a.frames < 1 || a.every < 1) return fail(cmd, "--frames/--every: must be at least 1", 2);
+  // Every flag and input is checked before the procedural run, which takes minutes.
+  if (a.width < 16 || a.height < 16 || a.width > 8192 || a.height > 8192)
+    return fail(cmd, "--width/--height: must be between 16 and 8192", 2);
+  if (a.cache_slots < 2) return fail(cmd, "--cache-slots: must be at least 2, got " + std::to_string(a.cache_slots), 2);
+  if (a.page_budget < 1 || a.page_budget > a.cache_slots)
+    return fail(cmd, "--page-budget: must be between 1 and --cache-slots (" + std::to_string(a.cache_slots) + ")", 2);
+  if (a.loader_threads < 1 || a.loader_threads > 64) return fail(cmd, "--loader-threads: must be between 1 and 64", 2);
+  if (a.staging < 1 || a.staging > 4096) return fail(cmd, "--staging: must be between 1 and 4096", 2);
+  if (a.level < -5 || a.level > 19 || a.level == 0) return fail(cmd, "--level: zstd level must be -5..-1 or 1..19", 2);
+  std::shared_ptr<const PageStoreReader> given_store;
+  if (!a.store.empty()) {
+    auto opened = PageStoreReader::open(a.store);
+    if (!opened) return fail(cmd, "--store: " + opened.error().message, 2);
+    given_store = std::move(opened.value());
+  }
+  auto owned = OutputLock::acquire("--out", a.out);  // one run per folder
+  if (!owned) return fail(cmd, owned.error().message, 2);
+  if (auto s = check_compare_folder(a.out, a.overwrite); !s) return fail(cmd, s.error().message, 2);
   // Inputs first: a bad scene or camera file leaves no output folder behind.
   auto assets = load_scene_and_assets(a.scene);
   if (!assets) return fail(cmd, assets.error().message, 2);
@@ -202,9 +239,12 @@ int run_compare(const CompareArgs& a) {
     if (!baked) return fail(cmd, baked.error().message, 1);
     bake_s = seconds_since(t0);
   }
-  auto opened = PageStoreReader::open(store_path);
-  if (!opened) return fail(cmd, opened.error().message, 2);
-  std::shared_ptr<const PageStoreReader> store = std::move(opened.value());
+  std::shared_ptr<const PageStoreReader> store = given_store;
+  if (!store) {
+    auto opened = PageStoreReader::open(store_path);
+    if (!opened) return fail(cmd, opened.error().message, 1);
+    store = std::move(opened.value());
+  }
 
   // 3. Stored, frame-exact (identical images expected) and asynchronous (timing).
   fo.vt.source = VtSource::stored;
@@ -332,11 +372,12 @@ const CommandRegistrar k_register{
     "compare", "Procedural vs stored megatexture on one scene and camera path: speed, disk, memory, images", 45,
     [](CLI::App& app) -> RunFn {
       auto a = std::make_shared<CompareArgs>();
-      app.add_option("--scene", a->scene, "Scene JSON file (default: the built-in scene)")->check(CLI::ExistingFile);
+      app.add_option("--scene", a->scene, "Scene JSON file (default: the built-in scene)")->check(regular_file());
       app.add_option("--method", a->method, "Transition method")->capture_default_str();
       app.add_option("--out", a->out, "Folder for the store, compare.json and disk_vs_v.svg")->capture_default_str();
-      app.add_option("--store", a->store, "Use this store instead of baking the pages the path needs")->check(CLI::ExistingFile);
+      app.add_option("--store", a->store, "Use this store instead of baking the pages the path needs")->check(regular_file());
       app.add_option("--camera", a->camera, "Camera path file (docs/renderer.md; default: the built-in flythrough)");
+      app.add_flag("--overwrite", a->overwrite, "Replace an earlier run's compare.tvt, compare.json and disk_vs_v.svg in --out");
       app.add_option("--frames", a->frames, "Frames of the camera path (from its start)")->capture_default_str();
       app.add_option("--width", a->width, "Image width")->capture_default_str();
       app.add_option("--height", a->height, "Image height")->capture_default_str();

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <optional>
 
 #include "compose/label_font.h"
 #include "compose/packed_scene.h"
@@ -44,6 +45,16 @@ int run_compose(const ComposeArgs& a) {
   if (!a.region.empty() && a.region.size() != 4) return fail(cmd, "--region: needs x,y,width,height", 2);
   if (!a.panels_dir.empty() && !std::filesystem::is_directory(a.panels_dir))
     return fail(cmd, "--panels: folder does not exist: " + a.panels_dir, 2);
+  // The output is checked and owned before the (possibly long) composition.
+  if (auto problem = check_image_output("--out", a.out); !problem.empty()) return fail(cmd, problem, 2);
+  auto owned = OutputLock::acquire("--out", a.out);
+  if (!owned) return fail(cmd, owned.error().message, 2);
+  std::optional<OutputLock> owned_panels;
+  if (!a.panels_dir.empty()) {
+    auto p = OutputLock::acquire("--panels", a.panels_dir);
+    if (!p) return fail(cmd, p.error().message, 2);
+    owned_panels.emplace(std::move(p.value()));
+  }
 
   const auto t0 = std::chrono::steady_clock::now();
   auto assets = load_scene_and_assets(a.scene);
@@ -132,7 +143,7 @@ int run_compose(const ComposeArgs& a) {
 const CommandRegistrar k_register{
     "compose", "Compose a terrain region with each transition method, side by side", 20, [](CLI::App& app) -> RunFn {
       auto a = std::make_shared<ComposeArgs>();
-      app.add_option("--scene", a->scene, "Scene JSON file (default: the built-in scene)")->check(CLI::ExistingFile);
+      app.add_option("--scene", a->scene, "Scene JSON file (default: the built-in scene)")->check(regular_file());
       app.add_option("--out", a->out, "Output image (PNG, EXR, ...)")->capture_default_str();
       app.add_option("--panels", a->panels_dir, "Also write each method's panel into this folder");
       app.add_option("--device", a->device, "gpu (compute shader) or cpu (double-precision reference)")->capture_default_str();

@@ -1,8 +1,6 @@
 // `terravt metatex`: builds the FBPB meta-texture of a material (docs/metatex.md).
 // Everything the user can get wrong is checked before anything is written; exit code 2 for
 // bad flags or input, 1 for failures while writing.
-#include <OpenImageIO/imageio.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -10,12 +8,14 @@
 #include <filesystem>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "compose/image.h"
 #include "compose/metatex.h"
 #include "compose/procedural.h"
+#include "tools/cli_common.h"
 #include "tools/commands.h"
 
 namespace tvt::cli {
@@ -47,22 +47,6 @@ int runtime_error(const std::string& message) {
 }
 
 bool is_power_of_two(int v) { return v > 0 && (v & (v - 1)) == 0; }
-
-// An output path is usable when its folder exists and (for images) OIIO has a writer for it.
-std::string check_output(const std::string& flag, const std::string& path, bool must_be_exr) {
-  const std::filesystem::path p(path);
-  const std::filesystem::path folder = p.has_parent_path() ? p.parent_path() : std::filesystem::path(".");
-  std::error_code ec;
-  if (!std::filesystem::is_directory(folder, ec))
-    return flag + " " + path + ": folder '" + folder.string() + "' does not exist";
-  if (std::filesystem::is_directory(p, ec)) return flag + " " + path + ": is a folder";
-  std::string ext = p.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-  if (must_be_exr && ext != ".exr") return flag + " " + path + ": the meta-texture is an OpenEXR file; use .exr";
-  if (!must_be_exr && (ext.empty() || !OIIO::ImageOutput::create(path)))
-    return flag + " " + path + ": no image writer for extension '" + ext + "' (use .png, .exr, .tif ...)";
-  return {};
-}
 
 struct Material {
   ImageRGBA8 albedo;
@@ -136,9 +120,19 @@ int load_material(const MetatexArgs& a, Material& m) {
 int run_metatex(const MetatexArgs& a, bool threshold_given, bool channel_given) {
   const auto start = std::chrono::steady_clock::now();
   if (a.input.empty() == a.generator.empty()) return usage_error("give exactly one of --input or --generator");
-  if (auto problem = check_output("--out", a.out, true); !problem.empty()) return usage_error(problem);
+  if (auto problem = check_image_output("--out", a.out, true); !problem.empty()) return usage_error(problem);
   if (!a.debug.empty())
-    if (auto problem = check_output("--debug", a.debug, false); !problem.empty()) return usage_error(problem);
+    if (auto problem = check_image_output("--debug", a.debug, false); !problem.empty()) return usage_error(problem);
+
+  // One process per output: two runs writing the same meta-texture never interleave.
+  auto owned = OutputLock::acquire("--out", a.out);
+  if (!owned) return usage_error(owned.error().message);
+  std::optional<OutputLock> owned_debug;
+  if (!a.debug.empty()) {
+    auto d = OutputLock::acquire("--debug", a.debug);
+    if (!d) return usage_error(d.error().message);
+    owned_debug.emplace(std::move(d.value()));
+  }
 
   Material m;
   if (int code = load_material(a, m); code != 0) return code;
@@ -232,13 +226,13 @@ const CommandRegistrar k_register{
       auto* channel = app.add_option("--channel", a->channel, "Channel to threshold (default: height if present)")
                           ->check(CLI::IsMember({"height", "luminance"}));
       auto* threshold = app.add_option("--threshold", a->threshold, "Feature if value > threshold (0..1); default Otsu")
-                            ->check(CLI::Range(0.0, 1.0));
+                            ->check(finite_range(0.0, 1.0));
       auto* invert = app.add_flag("--invert", a->invert, "Features are the dark side");
       app.add_option("--min-texels", a->min_texels, "Drop components smaller than this (specks)")->capture_default_str();
       auto* erode = app.add_option("--erode", a->erode, "Erode by this many texels before labelling (splits touching features)")
                         ->check(CLI::Range(0u, 256u));
       app.add_option("--blur", a->blur, "Gaussian sigma of the soft feature map, texels")
-          ->check(CLI::Range(0.0, 1024.0))
+          ->check(finite_range(0.0, 1024.0))
           ->capture_default_str();
       app.add_option("--out", a->out, "Meta-texture output (.exr)")->required();
       app.add_option("--debug", a->debug, "Colour-coded debug image output (.png ...)");

@@ -175,9 +175,9 @@ int run_render(const RenderArgs& a) {
   if (!camera) return fail(cmd, camera.error().message, 2);
   const double duration_s = camera->path.end_time() - camera->path.start_time();
   if (!a.save_camera.empty()) {
-    std::error_code ec;
-    if (std::filesystem::exists(std::filesystem::symlink_status(a.save_camera, ec)) && !a.overwrite)
-      return fail(cmd, "--save-camera: " + a.save_camera + " exists; pass --overwrite to replace it", 2);
+    if (auto s = check_output_file("--save-camera", a.save_camera, a.overwrite); !s) return fail(cmd, s.error().message, 2);
+    auto owned = OutputLock::acquire("--save-camera", a.save_camera);
+    if (!owned) return fail(cmd, owned.error().message, 2);
     const std::string text = camera_file_json(camera->path, camera->lens);
     // A path made for a huge terrain can leave the file format's limits: never write a file
     // that would not load again.
@@ -200,6 +200,8 @@ int run_render(const RenderArgs& a) {
     }
     frames = uint32_t(whole);
   }
+  auto owned = OutputLock::acquire("--out", a.out);  // one run per folder: frames of two runs never mix
+  if (!owned) return fail(cmd, owned.error().message, 2);
   if (auto s = check_output_folder(a.out, a.overwrite); !s) return fail(cmd, s.error().message, 2);
   auto ctx = gpu_context(a.gpu_name);
   if (!ctx) return fail(cmd, ctx.error().message, 1);
@@ -335,7 +337,7 @@ int run_render(const RenderArgs& a) {
 const CommandRegistrar k_register{
     "render", "Fly a camera over the terrain through the virtual texture (the main job)", 10, [](CLI::App& app) -> RunFn {
       auto a = std::make_shared<RenderArgs>();
-      app.add_option("--scene", a->scene, "Scene JSON file (default: the built-in scene)")->check(CLI::ExistingFile);
+      app.add_option("--scene", a->scene, "Scene JSON file (default: the built-in scene)")->check(regular_file());
       app.add_option("--out", a->out, "Output folder for frames and stats")->capture_default_str();
       const CLI::Option* camera = app.add_option("--camera", a->camera, "Camera path file (docs/renderer.md; default: the built-in flythrough)");
       const CLI::Option* save_camera = app.add_option(

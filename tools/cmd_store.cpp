@@ -24,8 +24,7 @@ struct MergeArgs {
 };
 
 int run_merge(const MergeArgs& a) {
-  if (std::error_code ec; std::filesystem::exists(std::filesystem::symlink_status(a.out, ec)) && !a.overwrite)
-    return fail("merge", "--out: " + a.out + " exists; pass --overwrite to replace it", 2);
+  if (auto s = check_output_file("--out", a.out, a.overwrite); !s) return fail("merge", s.error().message, 2);
   auto s = merge_stores(a.parts, a.out);
   if (!s) return fail("merge", s.error().message, 1);
   std::printf("merged %zu parts: %llu pages, %.1f MB -> %s\n", a.parts.size(), (unsigned long long)s->pages,
@@ -36,7 +35,7 @@ int run_merge(const MergeArgs& a) {
 const CommandRegistrar k_merge{
     "merge", "Join the parts of a sharded bake (bake --shard i/n) into one store", 41, [](CLI::App& app) -> RunFn {
       auto a = std::make_shared<MergeArgs>();
-      app.add_option("parts", a->parts, "Shard stores, any order")->required()->check(CLI::ExistingFile);
+      app.add_option("parts", a->parts, "Shard stores, any order")->required()->check(regular_file());
       app.add_option("--out", a->out, "Merged store (written atomically)")->required();
       app.add_flag("--overwrite", a->overwrite, "Replace an existing --out store (otherwise an error)");
       return [a] { return run_merge(*a); };

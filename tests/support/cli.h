@@ -1,0 +1,41 @@
+// Helpers of the CLI tests, which run the built terravt executable.
+#pragma once
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+
+namespace tvt::test {
+
+// Runs `terravt <args>` with `prefix` before it (e.g. "timeout 120 ", "VAR=1 "), stdin from
+// /dev/null; its stdout and stderr land in `output` (through a log file in `dir`). Returns the
+// exit code.
+inline int run_terravt(const std::filesystem::path& dir, const std::string& args, std::string& output,
+                       const std::string& prefix = "") {
+  const std::string log = (dir / "log.txt").string();
+  const std::string cmd = prefix + std::string(TVT_TERRAVT_EXE) + " " + args + " >" + log + " 2>&1 </dev/null";
+  const int status = std::system(cmd.c_str());
+  std::ifstream in(log);
+  output.assign(std::istreambuf_iterator<char>(in), {});
+  std::filesystem::remove(log);
+  return WEXITSTATUS(status);
+}
+
+// The built-in scene at V = 2^10 (85 pages over mips 0..3 of 128-texel pages), what the CLI
+// tests bake and render in seconds, written as `dir`/scene.json. Returns its path.
+inline std::string write_small_default_scene(const std::filesystem::path& dir) {
+  std::ifstream in(std::string(TVT_SOURCE_DIR) + "/docs/default-scene.json");
+  std::string json((std::istreambuf_iterator<char>(in)), {});
+  const std::string key = "\"log2_size\": 16";
+  EXPECT_NE(json.find(key), std::string::npos);
+  if (json.find(key) != std::string::npos) json.replace(json.find(key), key.size(), "\"log2_size\": 10");
+  const std::string scene = (dir / "scene.json").string();
+  std::ofstream(scene) << json;
+  return scene;
+}
+
+}  // namespace tvt::test
