@@ -1,4 +1,4 @@
-// Each material's texture mip chain and FBPB meta-texture, produced on first use (DESIGN §1:
+// Each material's texture mip chain and FBPB meta-texture, produced on first use (docs/architecture.md:
 // "nothing of a material is loaded that no visible page uses"). At scene load only the image
 // headers are read (sizes, channels), so a scene whose files are missing or mis-sized still
 // fails there, with the same messages; the texels are read (or generated, for built-in

@@ -1,4 +1,4 @@
-// FBPB meta-texture (thesis §3.4.4, DESIGN §4.1): feature isolation on the torus, centroid
+// FBPB meta-texture (thesis §3.4.4, docs/composition.md): feature isolation on the torus, centroid
 // offsets, soft feature map, EXR file and debug image.
 //
 // Decisions (see docs/metatex.md):

@@ -1,4 +1,4 @@
-// FBPB meta-texture (thesis §3.4.4, DESIGN §4.1): per material texel, the integer offset to
+// FBPB meta-texture (thesis §3.4.4, docs/composition.md): per material texel, the integer offset to
 // its feature's centroid, the binary feature mask d and the soft feature map f. Offsets are
 // computed on the torus, so a feature split across the tile edge is one feature and every
 // piece points at the same centroid.

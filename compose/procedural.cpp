@@ -1,7 +1,7 @@
 // Built-in procedural inputs (see procedural.h). Everything here is periodic on the torus of
 // the output grid: noise lattices have integer periods, cellular patterns place their sites on
 // an integer cell grid and measure distances to the nearest periodic image, and stamped
-// strokes wrap their texel coordinates. All randomness is integer hashing (DESIGN §3,
+// strokes wrap their texel coordinates. All randomness is integer hashing (docs/composition.md,
 // shaders/shared/hash.h), so outputs are pure functions of (generator, resolution, seed).
 //
 // Sizes of features are fractions of the resolution, so one material at 256² and at 1024²

@@ -1,4 +1,4 @@
-// CPU reference compositor (DESIGN §4): double precision, written for clarity, one texel at
+// CPU reference compositor (docs/composition.md): double precision, written for clarity, one texel at
 // a time. compose.comp implements the same maths in fp32; tests compare the two.
 //
 // Sources: Bloom splatting (boosted normalisation), Hardy & McRoberts blend maps, FBPB eq.
@@ -28,7 +28,7 @@ glm::dvec4 compose_sample_reference(const PackedScene& scene, int64_t x_fp, int6
 // 2^mip / s level-0 texels. Coordinates outside the mip are clamped to its edge.
 glm::dvec4 compose_texel_reference(const PackedScene& scene, uint32_t mip, int64_t x, int64_t y);
 
-// Box-filtered level-0 composition of mip texel (x, y): the ground truth of DESIGN §4.3.
+// Box-filtered level-0 composition of mip texel (x, y): the ground truth of docs/composition.md.
 glm::dvec4 ground_truth_texel(const PackedScene& scene, uint32_t mip, int64_t x, int64_t y);
 
 // A whole page, (P+2B)^2 texels RGBA8, row-major, border included. Reads only the materials

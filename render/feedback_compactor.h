@@ -3,7 +3,7 @@
 // list of distinct pages with texel counts, read back through a ring of host-visible buffers so
 // the CPU never waits for the GPU in the frame loop. See docs/feedback.md.
 //
-// Planned once from Options (STYLE #9), then per frame:
+// Planned once from Options, then per frame:
 //   VkFence f = compactor.record(cmd, feedback, frame);   // submit cmd with fence f
 //   ...later frames...
 //   if (auto r = compactor.try_read(frame - ring_size + 1)) residency.update(*r);

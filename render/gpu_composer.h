@@ -1,6 +1,6 @@
 // Host side of compose.comp: owns the scene buffers on the GPU and composes batches of pages
 // into layers of a storage image (RGBA8, (P+2B)^2 per layer). Planned once from a
-// PackedScene, then only records (STYLE #9). Not thread-safe; one queue.
+// PackedScene, then only records. Not thread-safe; one queue.
 //
 // Materials are uploaded lazily by default (render/material_uploader.h): record() uploads what
 // its pages read for the first time (weight layer, texture levels, meta-texture; exactly as

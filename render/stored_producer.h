@@ -1,4 +1,4 @@
-// Stored-page producer of the VT (DESIGN §5 "Producers", §6): pages of a baked store are read,
+// Stored-page producer of the VT (docs/virtual-texture.md, docs/page-store.md): pages of a baked store are read,
 // verified and decompressed by streaming/'s PageLoader on its own threads, straight into a
 // host-visible staging ring; the frame loop only polls finished pages and records their copy
 // into the cache slots. Nothing here ever waits for I/O.

@@ -1,7 +1,7 @@
 // Terrain raster pass: draws the chunked heightfield (TerrainMesh) for a Camera into its own
 // RenderTarget with sun + ambient lighting and distance fog toward the sky colour; the sky is
 // the clear colour. Planned once from TerrainRendererOptions, then record(cmd, camera)
-// (STYLE #9). See docs/renderer.md for coordinates, precision, LOD and cracks.
+// See docs/renderer.md for coordinates, precision, LOD and cracks.
 //
 // Not thread-safe. record() updates the frame uniform buffer inside the command buffer
 // (vkCmdUpdateBuffer), so several recorded frames may be in flight as long as they are
@@ -40,7 +40,7 @@ struct TerrainLighting {
   double detail_relief_m = 1.0;
 };
 
-// Who writes the virtual texture's feedback (page ids at 1/N of the view resolution, DESIGN §5).
+// Who writes the virtual texture's feedback (page ids at 1/N of the view resolution, docs/virtual-texture.md).
 enum class FeedbackMode : uint8_t {
   None,          // no feedback (a second view of the same VT, or measuring the sampling alone)
   MainPass,      // the colour pass stores it (storage buffer) for one rotating pixel per N x N block

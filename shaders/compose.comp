@@ -1,5 +1,5 @@
 #version 460
-// Page composition (DESIGN §4): one invocation per texel of a (P+2B)^2 page, one workgroup z
+// Page composition (docs/composition.md): one invocation per texel of a (P+2B)^2 page, one workgroup z
 // slice per page job; the per-sample maths is in compose_sample.glsl.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require

@@ -1,4 +1,4 @@
-// Composition of one sample (DESIGN §4), shared by compose.comp (pages into the cache) and the
+// Composition of one sample (docs/composition.md), shared by compose.comp (pages into the cache) and the
 // direct-splat baseline fragment shader. Same maths as compose/reference_compositor.cpp, in fp32
 // on top of exact 64-bit integer terrain coordinates: only small in-cell remainders ever become
 // floats. The includer declares, before including this file:

@@ -16,7 +16,7 @@
 // Albedo comes from terrain_albedo(TerrainFragment): the single place where virtual-texture
 // sampling plugs in. Everything it may need is in TerrainFragment; the level-0 VT texel
 // coordinate is anchor_texel + local_texel with anchor_texel an exact int64 pair and
-// local_texel a small float (camera-relative), never a whole-terrain float UV (DESIGN §3).
+// local_texel a small float (camera-relative), never a whole-terrain float UV (docs/composition.md).
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 
@@ -245,7 +245,7 @@ vec4 terrain_albedo(TerrainFragment f) {
 }
 #endif
 
-// Detail normal from the material height the albedo carries in alpha (DESIGN §2), relief
+// Detail normal from the material height the albedo carries in alpha (docs/architecture.md), relief
 // F.terrain.w metres from 0 to 1: g_height_gradient (per level-0 texel) over metres per texel
 // is the slope added to the heightfield's, n ~ (-Hx - hx, -Hy - hy, 1) = n / n.z - (hx, hy, 0).
 // The gradient is that of the filtered (mip-mapped) height, so detail fades with distance as

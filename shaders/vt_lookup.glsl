@@ -1,4 +1,4 @@
-// Page-table lookup (DESIGN §5). The includer declares
+// Page-table lookup (docs/virtual-texture.md). The includer declares
 //   TvtVtInfo tvt_vt;  uint tvt_vt_entries[];
 // and enables GL_EXT_shader_explicit_arithmetic_types_int64. Optionally it also declares, as a
 // second block on VT's binding, `ivec4 tvt_vt_info_words[]` and defines TVT_VT_INFO_WORDS: the same
@@ -6,7 +6,7 @@
 // (vt_types.h), instead of four 4-byte loads (-15 % of the VT pass on lavapipe, where every
 // buffer load is a per-lane gather).
 // Positions are level-0 texels as an exact integer part `ti` plus a float fraction `tf`
-// (|tf| small): no whole-terrain float coordinate anywhere (DESIGN §3).
+// (|tf| small): no whole-terrain float coordinate anywhere (docs/composition.md).
 #ifndef TVT_VT_LOOKUP_GLSL
 #define TVT_VT_LOOKUP_GLSL
 #include "shared/page_table_entry.h"

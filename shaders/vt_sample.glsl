@@ -1,4 +1,4 @@
-// Sampling through the virtual texture (DESIGN §5): vt_lookup.glsl plus the physical cache.
+// Sampling through the virtual texture (docs/virtual-texture.md): vt_lookup.glsl plus the physical cache.
 // The includer also declares sampler2DArray tvt_vt_cache (bilinear, clamp to edge, no mips).
 // Positions: level-0 texel `ti` (int32: positions on a terrain of V <= 2^30 texels fit, see
 // tvt_vt_lookup32; i64vec2 overloads clamp) plus the fraction `tf` in [0, 1).

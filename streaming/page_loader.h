@@ -1,5 +1,4 @@
-// Asynchronous page loader (DESIGN §1 "streaming/: worker threads: read + zstd decode ->
-// staging -> copy"). Workers pread and decompress pages of a PageStoreReader straight into a
+// Asynchronous page loader (docs/architecture.md). Workers pread and decompress pages of a PageStoreReader straight into a
 // bounded ring of staging slots; the caller polls finished pages, copies them out (e.g. into
 // the GPU cache) and releases the slot.
 //

@@ -1,4 +1,4 @@
-// Stored megatexture (DESIGN §6): one file of zstd-compressed pages with a checked header and
+// Stored megatexture (docs/page-store.md): one file of zstd-compressed pages with a checked header and
 // index, read with pread from many threads. Layout and rationale: docs/page-store.md; the byte
 // layout itself is in streaming/store_format.h.
 //

@@ -1,4 +1,4 @@
-// compose/metatex.cpp: isolation and centroids on the torus (DESIGN §4.1), soft map, EXR file.
+// compose/metatex.cpp: isolation and centroids on the torus (docs/composition.md), soft map, EXR file.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -81,7 +81,7 @@ std::map<int32_t, std::pair<int, int>> centroids_by_label(const tvt::FeatureLabe
   return out;
 }
 
-// Run-time property (DESIGN §4.1: C = floor(U) + (dx, dy)): crossing from texel x to its
+// Run-time property (docs/composition.md: C = floor(U) + (dx, dy)): crossing from texel x to its
 // neighbour x+1 (unwrapped, possibly into the next tile) inside one feature gives the same C.
 void expect_unwrapped_agreement(const tvt::FeatureLabels& labels, const tvt::MetaTexture& m) {
   const int r = labels.resolution;
@@ -469,7 +469,7 @@ TEST_F(MetatexFileTest, ReadRejectsCorruptFilesNamingFileAndProblem) {
 
 namespace {
 
-// STYLE #6: every truncated prefix and every flipped byte of a meta-texture file is either
+// A binary format's reader: every truncated prefix and every flipped byte of a meta-texture file is either
 // rejected with the file's name or read back as a meta-texture that satisfies the format rules.
 TEST_F(MetatexFileTest, EveryTruncationAndFlippedByteIsRejectedOrValid) {
   constexpr int r = 16;

@@ -1,4 +1,4 @@
-// PageTable against a brute-force reference model (STYLE #5: integer tables match bit for
+// PageTable against a brute-force reference model (integer tables match bit for
 // bit): after every map / unmap / set_centre of thousands of seeded random streams, every
 // entry of every mip equals what the reference derives from first principles, and a GPU
 // mirror fed only with take_updates() equals the table.

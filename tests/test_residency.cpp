@@ -1,6 +1,6 @@
 // Residency policy driven by seeded random frames and a fake producer that completes some
-// requests at once, some frames later and fails some (STYLE #2). Every frame checks the
-// invariants of DESIGN §5: lookups only ever name resident pages' slots, pinned pages and
+// requests at once, some frames later and fails some. Every frame checks the
+// invariants of docs/virtual-texture.md: lookups only ever name resident pages' slots, pinned pages and
 // this frame's working set are never evicted, no slot is handed out twice, and the page
 // table equals the brute-force reference built from the resident set.
 #include <gtest/gtest.h>

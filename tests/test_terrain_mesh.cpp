@@ -187,7 +187,7 @@ TEST(TerrainPrecisionTest, FarCornerTexelWithinOne256thOfATexel) {
     const glm::dvec2 exact_f = glm::dvec2(anchor_x, anchor_y) + glm::dvec2(p0) * double(fa) +
                                glm::dvec2(p1) * double(fb) + glm::dvec2(p2) * double(fc);
     worst = std::max({worst, std::abs(rx - exact_f.x), std::abs(ry - exact_f.y)});
-    // A whole-terrain float UV in [0,1] cannot name the texel at all (DESIGN §3).
+    // A whole-terrain float UV in [0,1] cannot name the texel at all (docs/composition.md).
     const float uv = float(exact.x / double(v));
     worst_naive = std::max(worst_naive, std::abs(double(uv) * double(v) - exact.x));
   }

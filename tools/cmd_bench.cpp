@@ -174,7 +174,7 @@ double psnr_rgb(const std::vector<uint8_t>& a, const std::vector<uint8_t>& b) {
   return 10.0 * std::log10(255.0 * 255.0 / (se / double(n)));
 }
 
-// Mip strategies of DESIGN §4.3 against the ground truth (the box filter of the level-0
+// Mip strategies of docs/composition.md against the ground truth (the box filter of the level-0
 // composition = 2^m x 2^m supersampling at mip m): error and cost side by side.
 int run_bench_mips(const BenchMipsArgs& a) {
   const char* cmd = "bench mips";

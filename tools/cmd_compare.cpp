@@ -1,5 +1,5 @@
 // `terravt compare`: procedural composition vs a stored megatexture on the same scene and
-// camera path, in one run (DESIGN §7). Runs the flythrough composing pages, bakes exactly the
+// camera path, in one run (docs/stored-megatexture.md). Runs the flythrough composing pages, bakes exactly the
 // pages that run needed (or takes --store), runs it again from the store (once frame-exact,
 // waiting for every frame's loads, to prove the images identical; once asynchronous, as an
 // engine would), and reports pages/s, ms per page, disk bytes, GPU memory, frame times, image

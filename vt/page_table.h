@@ -1,4 +1,4 @@
-// The VT indirection (DESIGN §5 "page table"), bounded by the window size, not by V.
+// The VT indirection (docs/virtual-texture.md), bounded by the window size, not by V.
 // Design, bit layout and limits: docs/page-table.md.
 //
 // Per mip m the table keeps a toroidal window of s_m x s_m entries, s_m = min(W,

@@ -1,4 +1,4 @@
-// LRU residency policy for the VT page cache (DESIGN §5 "Residency", "Producers"), plain CPU
+// LRU residency policy for the VT page cache (docs/virtual-texture.md), plain CPU
 // like Granite's AssetManager + LRUCache: it decides which pages live in which slots; the
 // GPU side (composer, stored-page loader) only fills the slots it is told to fill.
 //

@@ -1,4 +1,4 @@
-// Two levels of errors (STYLE #8): TVT_CHECK for what must not fail, Result<T> for what a
+// Two levels of errors: TVT_CHECK for what must not fail, Result<T> for what a
 // user can cause (bad scene, missing file, corrupt page). Error text names file and field.
 #pragma once
 #include <cstdio>

@@ -1,9 +1,9 @@
-// A fixed pool of physical cache slots 0 .. N-1 (DESIGN §5 "physical cache").
+// A fixed pool of physical cache slots 0 .. N-1 (docs/virtual-texture.md).
 //
 // Contract:
 // - allocate() and free() are O(1): a LIFO stack of free slots plus one state byte per slot.
 // - Freeing a slot that is not allocated (double free, or a slot never handed out) or a slot
-//   >= N is a programming error and stops the program with a fatal check (STYLE #8): a slot
+//   >= N is a programming error and stops the program with a fatal check: a slot
 //   handed to two pages would make two pages share texels, which no test could later trace.
 // - Running out of slots is not an error: allocate() returns std::nullopt and the caller
 //   (the residency policy) decides what to evict.

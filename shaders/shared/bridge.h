@@ -1,5 +1,5 @@
 // One definition of every struct, constant and integer routine shared by GLSL and C++
-// (STYLE #3). GLSL includes this with GL_GOOGLE_include_directive and must enable
+// GLSL includes this with GL_GOOGLE_include_directive and must enable
 // GL_EXT_shader_explicit_arithmetic_types_int64 first; C++ gets the same names in tvt::gpu.
 #ifndef TVT_SHARED_BRIDGE_H
 #define TVT_SHARED_BRIDGE_H

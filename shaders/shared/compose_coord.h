@@ -18,7 +18,7 @@
 
 TVT_BEGIN
 
-TVT_CONST int TVT_COMPOSE_PATTERN_NONE = 0;    // the composition (DESIGN §4)
+TVT_CONST int TVT_COMPOSE_PATTERN_NONE = 0;    // the composition (docs/composition.md)
 TVT_CONST int TVT_COMPOSE_PATTERN_COORDS = 1;  // tvt_coord_word() of every texel
 TVT_CONST int TVT_COORD_BLOCK_SHIFT = 9;       // X >> 9: the block the hash scrambles with
 

@@ -1,5 +1,5 @@
 // GPU-visible composition parameters (std430), shared by compose.comp and the C++ host.
-// Units: *_fp values are level-0 VT texels in 1/256 fixed point (DESIGN §3).
+// Units: *_fp values are level-0 VT texels in 1/256 fixed point (docs/composition.md).
 #ifndef TVT_SHARED_COMPOSE_TYPES_H
 #define TVT_SHARED_COMPOSE_TYPES_H
 #include "bridge.h"

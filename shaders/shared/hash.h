@@ -1,4 +1,4 @@
-// Integer hashing for every random decision (DESIGN §3): a pure function of terrain-space
+// Integer hashing for every random decision (docs/composition.md): a pure function of terrain-space
 // integer coordinates and a salt, bit-identical in GLSL and C++, independent of page, mip
 // and time. No float hashing, no noise textures.
 #ifndef TVT_SHARED_HASH_H
@@ -28,7 +28,7 @@ TVT_FN uint tvt_hash_coord(int64_t x, int64_t y, uint salt) {
   return h;
 }
 
-// r in (0, 1], exactly representable in fp32: r = ((h >> 8) + 1) * 2^-24 (DESIGN §3).
+// r in (0, 1], exactly representable in fp32: r = ((h >> 8) + 1) * 2^-24 (docs/composition.md).
 TVT_FN float tvt_rand01(uint h) { return float((h >> 8u) + 1u) * 5.9604644775390625e-8f; }
 
 // Salts: derived from the scene seed and small integers (material index, layer, purpose).
