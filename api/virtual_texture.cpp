@@ -61,7 +61,7 @@ Result<std::unique_ptr<VirtualTexture>> VirtualTexture::create(const DeviceHandl
   auto impl = std::make_unique<Impl>();
   impl->desc = desc;
   auto context = tvt::vk::Context::adopt(device);
-  if (!context) return Error{ErrorKind::unsupported_device, context.error().message};
+  if (!context) return context.error();  // check_device()'s kind: invalid_argument or unsupported_device
   impl->context = std::move(context.value());
 
   auto scene = desc.scene_file.empty() ? tvt::Result<tvt::SceneDesc>(tvt::default_scene())

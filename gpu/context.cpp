@@ -9,7 +9,7 @@
 namespace tvt::vk {
 
 Result<std::unique_ptr<Context>> Context::adopt(const terravt::DeviceHandles& handles) {
-  if (auto s = terravt::check_device(handles); !s) return make_error(s.error().message);
+  if (auto s = terravt::check_device(handles); !s) return s.error();
   std::unique_ptr<Context> ctx(new Context());
   ctx->instance_ = handles.instance;
   ctx->physical_ = handles.physical_device;

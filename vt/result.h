@@ -5,38 +5,23 @@
 #include <cstdlib>
 #include <string>
 #include <utility>
-#include <variant>
+
+#include "terravt/error.h"
 
 namespace tvt {
 
-struct Error {
-  std::string message;  // complete, human readable: "scene.json: /materials/2/mode: ..."
-};
-
+// One error type inside and outside the library: the public terravt::Error (a kind, the
+// VkResult where Vulkan failed, a complete message) and terravt::Result<T>.
+using Error = terravt::Error;
+using ErrorKind = terravt::ErrorKind;
 template <class T>
-class [[nodiscard]] Result {
- public:
-  Result(T value) : v_(std::move(value)) {}  // NOLINT: implicit by design
-  Result(Error error) : v_(std::move(error)) {}  // NOLINT
-  bool ok() const { return v_.index() == 0; }
-  explicit operator bool() const { return ok(); }
-  T& value() & { return std::get<0>(v_); }
-  const T& value() const& { return std::get<0>(v_); }
-  T&& value() && { return std::get<0>(std::move(v_)); }
-  T* operator->() { return &value(); }
-  const T* operator->() const { return &value(); }
-  T& operator*() & { return value(); }
-  const T& operator*() const& { return value(); }
-  const Error& error() const { return std::get<1>(v_); }
+using Result = terravt::Result<T>;
+using Ok = terravt::Ok;
+using Status = terravt::Status;
 
- private:
-  std::variant<T, Error> v_;
-};
-
-struct Ok {};
-using Status = Result<Ok>;
-
-inline Error make_error(std::string message) { return Error{std::move(message)}; }
+inline Error make_error(std::string message, ErrorKind kind = ErrorKind::invalid_argument) {
+  return Error{kind, std::move(message)};
+}
 
 [[noreturn]] inline void fatal(const char* file, int line, const char* expr, const char* what) {
   std::fprintf(stderr, "terravt: fatal: %s:%d: %s%s%s\n", file, line, expr, what ? ": " : "", what ? what : "");

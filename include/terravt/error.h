@@ -1,10 +1,9 @@
-// Errors are values: every terravt call that can fail returns Result<T> (or Status), never
+// Errors are values (no Vulkan header needed: plain C++, also used by terravt's CPU-only code): every terravt call that can fail returns Result<T> (or Status), never
 // aborts, never throws across the API and never writes to stderr. An Error carries a kind a
 // program can branch on, the VkResult where Vulkan failed, and a complete message that names
 // what was wrong (the file and field, the missing feature, the Vulkan call).
 #pragma once
-#include <vulkan/vulkan.h>
-
+#include <cstdint>
 #include <string>
 #include <utility>
 #include <variant>
@@ -29,7 +28,7 @@ TERRAVT_API const char* to_string(ErrorKind kind) noexcept;
 struct Error {
   ErrorKind kind = ErrorKind::invalid_argument;
   std::string message;             // complete and human readable
-  VkResult vk_result = VK_SUCCESS;  // the failing call's result, for vulkan/device_lost/out_of_memory
+  int32_t vk_result = 0;            // the failing call's VkResult (vulkan, device_lost, out_of_memory); 0 otherwise
 };
 
 // A value or an Error. Checked access: value() on an error (or error() on a value) is a
