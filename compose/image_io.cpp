@@ -1,8 +1,7 @@
 // Image files through OpenImageIO 2.4 (compose/image.h). Every error starts with the file name.
 // Colour values are taken as stored: no colour-space conversion, and alpha is never
 // (un)premultiplied, because for materials A is the height / blend map, not coverage.
-#include <unistd.h>
-
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
@@ -12,9 +11,11 @@
 #include <memory>
 #include <string>
 #include <system_error>
+#include <vector>
 
 #include "compose/image.h"
 #include "compose/image_io_detail.h"
+#include "streaming/file_io.h"
 
 namespace tvt {
 
@@ -84,8 +85,11 @@ uint8_t unorm8(float value) {
   return uint8_t(std::lround(clamped * 255.0f));
 }
 
-// Writes `data` (described by `spec`, texel type `data_type`) to `path` through a temporary file
-// in the same folder, renamed over `path` only once the whole file is written.
+// Writes `data` (described by `spec`, texel type `data_type`) to `path`: OpenImageIO encodes
+// the file in memory (its own file writes go through stdio, whose errors it does not always
+// see, so a full disk left 0-byte "written" files), then fileio::write_file_durable writes it
+// under a temporary name with every write checked, fsyncs and renames it over `path`. A
+// failure names the file and the OS error and leaves any earlier file untouched.
 Status write_atomically(const std::string& path, OIIO::ImageSpec spec, OIIO::TypeDesc data_type, const void* data) {
   if (path.empty()) return make_error("(empty path): no output file name given");
   const fs::path target(path);
@@ -105,22 +109,20 @@ Status write_atomically(const std::string& path, OIIO::ImageSpec spec, OIIO::Typ
   if (!out)
     return make_error(path + ": unsupported image format '" + target.extension().string() + "' (" +
                       one_line(OIIO::geterror()) + ")");
+  if (!out->supports("ioproxy"))
+    return make_error(path + ": the '" + target.extension().string() +
+                      "' writer cannot encode to memory, so its writes cannot be checked (use .png, .exr, .tif ...)");
 
   spec.attribute("oiio:UnassociatedAlpha", 1);  // write alpha as given, never un-premultiply
-  const std::string temporary = path + ".tmp-" + std::to_string(::getpid());
-  auto fail = [&](const std::string& what) -> Status {
-    out.reset();  // closes the temporary file before it is removed
-    std::error_code ignored;
-    fs::remove(temporary, ignored);
-    return make_error(path + ": " + what);
-  };
-  if (!out->open(temporary, spec)) return fail("cannot write (" + one_line(out->geterror()) + ")");
-  if (!out->write_image(data_type, data)) return fail("cannot write texels (" + one_line(out->geterror()) + ")");
-  if (!out->close()) return fail("cannot finish the file (" + one_line(out->geterror()) + ")");
+  std::vector<unsigned char> encoded;
+  OIIO::Filesystem::IOVecOutput proxy(encoded);
+  if (!out->set_ioproxy(&proxy)) return make_error(path + ": cannot encode to memory (" + one_line(out->geterror()) + ")");
+  if (!out->open(path, spec)) return make_error(path + ": cannot encode (" + one_line(out->geterror()) + ")");
+  if (!out->write_image(data_type, data)) return make_error(path + ": cannot encode texels (" + one_line(out->geterror()) + ")");
+  if (!out->close()) return make_error(path + ": cannot finish encoding (" + one_line(out->geterror()) + ")");
   out.reset();
-  fs::rename(temporary, target, ec);
-  if (ec) return fail("cannot rename the finished temporary file into place (" + ec.message() + ")");
-  return Ok{};
+  if (encoded.empty()) return make_error(path + ": OpenImageIO encoded no bytes");
+  return fileio::write_file_durable(path, encoded.data(), encoded.size());
 }
 
 Status check_size(const std::string& path, int width, int height, size_t values, size_t per_texel) {

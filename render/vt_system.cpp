@@ -151,6 +151,7 @@ void VtSystem::begin_frame(uint64_t frame, uint32_t camera_x, uint32_t camera_y,
 
   const auto t0 = std::chrono::steady_clock::now();
   uint32_t composed_new = 0;
+  bool pinned_loading = false;  // a pinned page was requested from the store this frame
   for (;;) {
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     if (ms > options_.time_budget_ms) break;
@@ -163,6 +164,7 @@ void VtSystem::begin_frame(uint64_t frame, uint32_t camera_x, uint32_t camera_y,
         break;
       }
       loading_.insert(r->page.pack());
+      pinned_loading = pinned_loading || residency_.is_pinned(r->page);
       continue;
     }
     if (options_.source == VtSource::stored) {
@@ -177,7 +179,10 @@ void VtSystem::begin_frame(uint64_t frame, uint32_t camera_x, uint32_t camera_y,
     jobs_.push_back(PageJob{r->page, r->slot});
     ++composed_new;
   }
-  if (stored_ && options_.sync_loads) {
+  // The pinned (coarsest) pages are what every texel falls back to: a frame that asks for them
+  // (the first; later only a retry) waits for their loads, so no frame draws before the store
+  // has given them. They are few and small; a failed one is composed here in hybrid.
+  if (stored_ && (options_.sync_loads || pinned_loading)) {
     stored_->wait_idle();
     collect_loads();
   }

@@ -58,4 +58,19 @@ struct VerifyReport {
 };
 Result<VerifyReport> verify_store(const std::string& path, uint32_t threads = 0);
 
+// `terravt verify --salvage OUT`: writes to `out` a new, valid whole store of every intact
+// record of the damaged store `damaged` (its index may be lost, truncated or followed by
+// junk; damaged records are skipped), in file order, blobs copied unchanged. Needs an intact
+// header (VT, layers, dictionary). Refuses an existing `out` unless `overwrite`; writes
+// atomically (<out>.partial, then rename). An error when no record is intact.
+struct SalvageReport {
+  uint64_t pages = 0;           // records kept
+  uint64_t declared_pages = 0;  // page_count of the damaged header
+  uint64_t duplicates = 0;      // intact records of a page kept already (skipped)
+  uint64_t skipped_bytes = 0;   // bytes after the dictionary not in a kept record (index included)
+  uint64_t file_bytes = 0;      // of `out`
+  double seconds = 0;
+};
+Result<SalvageReport> salvage_store(const std::string& damaged, const std::string& out, bool overwrite);
+
 }  // namespace tvt

@@ -5,10 +5,15 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <limits>
+#include <mutex>
 
 namespace tvt::fileio {
 
@@ -18,6 +23,50 @@ void UniqueFd::reset() {
 }
 
 std::string errno_text(int err) { return std::strerror(err); }
+
+namespace {
+
+// inject_write_failure(): bytes written so far, the mark, and the error past it.
+std::atomic<uint64_t> g_written{0};
+std::atomic<uint64_t> g_fail_after{std::numeric_limits<uint64_t>::max()};
+std::atomic<int> g_fail_errno{ENOSPC};
+
+void read_fault_environment() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    const char* text = std::getenv("TERRAVT_FAULT_WRITE_AFTER");
+    if (!text || !*text) return;
+    char* end = nullptr;
+    const unsigned long long after = std::strtoull(text, &end, 10);
+    if (end && *end == '\0') inject_write_failure(after, ENOSPC);
+  });
+}
+
+// One pwrite, unless inject_write_failure() says the disk is full: then fewer bytes, or -1
+// with errno set.
+ssize_t checked_pwrite(int fd, const void* data, size_t bytes, off_t offset) {
+  read_fault_environment();
+  const uint64_t limit = g_fail_after.load(std::memory_order_relaxed);
+  if (limit != std::numeric_limits<uint64_t>::max()) {
+    const uint64_t done = g_written.load(std::memory_order_relaxed);
+    if (done >= limit) {
+      errno = g_fail_errno.load(std::memory_order_relaxed);
+      return -1;
+    }
+    bytes = size_t(std::min<uint64_t>(bytes, limit - done));
+  }
+  const ssize_t n = ::pwrite(fd, data, bytes, offset);
+  if (n > 0) g_written.fetch_add(uint64_t(n), std::memory_order_relaxed);
+  return n;
+}
+
+}  // namespace
+
+void inject_write_failure(uint64_t after_bytes, int err) {
+  g_written = 0;
+  g_fail_errno = err;
+  g_fail_after = after_bytes;
+}
 
 int64_t pread_full(int fd, void* data, size_t bytes, uint64_t offset) {
   auto* p = static_cast<uint8_t*>(data);
@@ -38,12 +87,15 @@ Status pwrite_full(int fd, const void* data, size_t bytes, uint64_t offset, cons
   const auto* p = static_cast<const uint8_t*>(data);
   size_t done = 0;
   while (done < bytes) {
-    const ssize_t n = ::pwrite(fd, p + done, bytes - done, off_t(offset + done));
+    const ssize_t n = checked_pwrite(fd, p + done, bytes - done, off_t(offset + done));
     if (n < 0) {
       if (errno == EINTR) continue;
       return make_error(path + ": cannot write " + std::to_string(bytes) + " bytes at offset " + std::to_string(offset) +
                         ": " + errno_text(errno));
     }
+    if (n == 0)  // no progress and no error: would loop forever
+      return make_error(path + ": cannot write " + std::to_string(bytes) + " bytes at offset " + std::to_string(offset) +
+                        ": the system wrote nothing");
     done += size_t(n);
   }
   return Ok{};
@@ -65,16 +117,68 @@ Status rename_durable(const std::string& from, const std::string& to) {
 }
 
 Status write_file_durable(const std::string& path, const void* bytes, size_t size) {
-  const std::string temporary = path + ".tmp-" + std::to_string(::getpid());
-  Status written = [&]() -> Status {
-    UniqueFd fd(::open(temporary.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644));
-    if (fd.get() < 0) return make_error(path + ": cannot create " + temporary + ": " + errno_text(errno));
-    if (auto w = pwrite_full(fd.get(), bytes, size, 0, temporary); !w) return w;
-    return fsync_file(fd.get(), temporary);
-  }();
-  if (written) written = rename_durable(temporary, path);
-  if (!written) ::unlink(temporary.c_str());
-  return written;
+  auto file = StagedFile::create(path);
+  if (!file) return file.error();
+  if (auto w = file->append(bytes, size); !w) return w;
+  return file->commit();
+}
+
+Result<StagedFile> StagedFile::create(const std::string& path) {
+  StagedFile f;
+  f.path_ = path;
+  f.temporary_ = path + ".tmp-" + std::to_string(::getpid());
+  f.fd_ = UniqueFd(::open(f.temporary_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644));
+  if (f.fd_.get() < 0) return make_error(path + ": cannot create " + f.temporary_ + ": " + errno_text(errno));
+  return f;
+}
+
+StagedFile& StagedFile::operator=(StagedFile&& o) noexcept {
+  if (this != &o) {
+    remove_temporary();
+    path_ = std::move(o.path_);
+    temporary_ = std::move(o.temporary_);
+    fd_ = std::move(o.fd_);
+    size_ = o.size_;
+    failed_ = o.failed_;
+  }
+  return *this;
+}
+
+StagedFile::~StagedFile() { remove_temporary(); }
+
+void StagedFile::remove_temporary() {
+  if (fd_.get() < 0) return;  // moved from, or committed
+  fd_.reset();
+  ::unlink(temporary_.c_str());
+}
+
+Status StagedFile::append(const void* data, size_t bytes) {
+  if (fd_.get() < 0 || failed_) return make_error(path_ + ": not open for writing (an earlier write failed)");
+  if (auto w = pwrite_full(fd_.get(), data, bytes, size_, path_); !w) {
+    failed_ = true;
+    return w;
+  }
+  size_ += bytes;
+  return Ok{};
+}
+
+Status StagedFile::commit() {
+  if (fd_.get() < 0 || failed_) return make_error(path_ + ": not open for writing (an earlier write failed)");
+  if (auto s = fsync_file(fd_.get(), path_); !s) {
+    failed_ = true;
+    return s;
+  }
+  // close() reports errors that some file systems (NFS) defer to it.
+  if (::close(fd_.release()) != 0) {
+    const int err = errno;
+    ::unlink(temporary_.c_str());
+    return make_error(path_ + ": cannot close " + temporary_ + ": " + errno_text(err));
+  }
+  if (auto s = rename_durable(temporary_, path_); !s) {
+    ::unlink(temporary_.c_str());
+    return s;
+  }
+  return Ok{};
 }
 
 Result<uint64_t> file_size(int fd, const std::string& path) {

@@ -1,9 +1,12 @@
-// POSIX file helpers for the page store: an owning descriptor, full pread/pwrite loops that
-// survive EINTR and short transfers, durable rename. Errors name the file.
+// POSIX file helpers for every file terravt writes: an owning descriptor, full pread/pwrite
+// loops that survive EINTR and short transfers, durable rename, staged (temporary name, fsync,
+// rename) files. Every write is checked: a full disk or an I/O error is an error naming the
+// file and the OS error, never a silently short file. Errors name the file.
 #pragma once
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <string_view>
 
 #include "vt/result.h"
 
@@ -49,6 +52,43 @@ Status rename_durable(const std::string& from, const std::string& to);
 // Writes `bytes` to `path` through a temporary file in the same folder, fsync and
 // rename_durable: a failure leaves any earlier file untouched and no temporary behind.
 Status write_file_durable(const std::string& path, const void* bytes, size_t size);
+
+// A file written front to back under a temporary name in its folder (<path>.tmp-<pid>) and
+// renamed over `path` by commit() after fsync. Until commit() succeeds `path` is untouched;
+// a StagedFile destroyed uncommitted removes its temporary. Move-only; one owner thread.
+class StagedFile {
+ public:
+  // Creates the temporary (truncating one a crashed run of this pid left). Errors name `path`.
+  static Result<StagedFile> create(const std::string& path);
+  StagedFile() = default;
+  StagedFile(StagedFile&&) noexcept = default;
+  StagedFile& operator=(StagedFile&& o) noexcept;
+  ~StagedFile();
+  // Every byte or an error "<path>: cannot write ...: <OS error>"; after an error the
+  // file is unusable (later appends and commit() fail).
+  Status append(const void* data, size_t bytes);
+  Status append(std::string_view text) { return append(text.data(), text.size()); }
+  // fsync, then rename_durable over path(). Once only.
+  Status commit();
+  bool is_open() const { return fd_.get() >= 0; }
+  const std::string& path() const { return path_; }
+  const std::string& temporary_path() const { return temporary_; }
+
+ private:
+  void remove_temporary();
+  std::string path_, temporary_;
+  UniqueFd fd_;
+  uint64_t size_ = 0;
+  bool failed_ = false;
+};
+
+// Fault injection, for tests of the write paths: once this process has written `after_bytes`
+// bytes through pwrite_full (every StagedFile, durable write and page-store write goes through
+// it), each further write fails with `err`; a write crossing the mark is first cut short
+// there, as on a full disk. after_bytes = UINT64_MAX turns it off and resets the count.
+// The environment variable TERRAVT_FAULT_WRITE_AFTER=<bytes> sets the same with ENOSPC at the
+// first write, so a test can make the terravt executable meet a full disk at a chosen byte.
+void inject_write_failure(uint64_t after_bytes, int err);
 // Size of an open file, or an error naming `path`.
 Result<uint64_t> file_size(int fd, const std::string& path);
 // Takes a non-blocking exclusive lock on `fd` (flock): fails if another process holds it.

@@ -3,6 +3,8 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 
 #include "compose/image.h"
 
@@ -49,5 +51,25 @@ TEST(ComposeCli, BadFlagsExitWithUsageErrorAndWriteNothing) {
                                   "compose --size 2", "compose --scene /does/not/exist.json", "compose --panels /no/such/dir"})
     EXPECT_EQ(run(args + " --device cpu" + out), 2) << args;
   EXPECT_TRUE(fs::is_empty(d));
+  fs::remove_all(d);
+}
+
+// The panels and the sheet are written all or none: a full disk part-way (after ~20 KB, so a
+// few panels are written first) fails with the file and the OS error, and removes the panels.
+TEST(ComposeCli, AFullDiskFailsNamingTheFileAndLeavesNoSheetOrPanel) {
+  const fs::path d = temp_dir("full");
+  const fs::path out = d / "sheet.png", log = d / "log.txt";
+  const std::string cmd = "TERRAVT_FAULT_WRITE_AFTER=20000 " + std::string(TVT_TERRAVT_EXE) +
+                          " compose --device cpu --size 64 --mip 3 --out " + out.string() + " --panels " + d.string() +
+                          " >" + log.string() + " 2>&1";
+  const int status = std::system(cmd.c_str());
+  std::ifstream in(log);
+  const std::string output{std::istreambuf_iterator<char>(in), {}};
+  EXPECT_EQ(WEXITSTATUS(status), 1) << output;
+  EXPECT_NE(output.find("No space left on device"), std::string::npos) << output;
+  EXPECT_NE(output.find(d.string() + "/"), std::string::npos) << output;
+  EXPECT_EQ(output.find("wrote"), std::string::npos) << output;
+  fs::remove(log);
+  EXPECT_TRUE(fs::is_empty(d)) << output;
   fs::remove_all(d);
 }

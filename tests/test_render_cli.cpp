@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "render/terrain_renderer.h"
+#include "support/small_tmpfs.h"
 #include "support/temp_dir.h"
 
 namespace fs = std::filesystem;
@@ -22,10 +23,11 @@ class RenderCli : public ::testing::Test {
   void SetUp() override { dir_ = tvt::test::fresh_test_dir("tvt_render_cli"); }
   void TearDown() override { fs::remove_all(dir_); }
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
-  // Runs terravt with the validation layer on; stdout+stderr land in `output_`.
-  int run(const std::string& args) {
+  // Runs terravt with the validation layer on (and `env`, "NAME=value ...", set); stdout+stderr
+  // land in `output_`.
+  int run(const std::string& args, const std::string& env = "") {
     const std::string log = path("log.txt");
-    const std::string cmd = "TERRAVT_VALIDATION=1 " + std::string(TVT_TERRAVT_EXE) + " " + args + " >" + log + " 2>&1";
+    const std::string cmd = "TERRAVT_VALIDATION=1 " + env + " " + std::string(TVT_TERRAVT_EXE) + " " + args + " >" + log + " 2>&1";
     const int status = std::system(cmd.c_str());
     std::ifstream in(log);
     output_.assign(std::istreambuf_iterator<char>(in), {});
@@ -269,6 +271,41 @@ TEST_F(RenderCli, ACameraFileIsFlownWholeUnlessFramesAreGiven) {
 
 // --vt-filter's names (render/terrain_renderer.h): the named filters, brilinear's band, and
 // every text that is not one of them, including bands outside [0, 1] and NaN.
+// A write that fails part-way (here the file writes meet a full disk after ~100 KB, a few
+// frames in) fails the run: exit 1, the message names the file and the OS error, no "wrote"
+// line, and nothing of the run is left to look complete (no stats.jsonl, no frame; the folder
+// the run made is gone).
+TEST_F(RenderCli, AFullDiskFailsTheRunNamingTheFileAndKeepsNothing) {
+  const std::string out = path("out");
+  EXPECT_EQ(run("render --quiet --frames 10 --every 1 --width 160 --height 90 --cache-slots 64 --out " + out,
+                "TERRAVT_FAULT_WRITE_AFTER=100000"),
+            1)
+      << output_;
+  EXPECT_NE(output_.find("No space left on device"), std::string::npos) << output_;
+  EXPECT_NE(output_.find(out + "/frame_000"), std::string::npos) << output_;
+  EXPECT_EQ(output_.find("wrote"), std::string::npos) << output_;
+  EXPECT_FALSE(fs::exists(out)) << output_;
+  // The same run with room to spare completes.
+  EXPECT_EQ(run("render --quiet --frames 10 --every 1 --width 160 --height 90 --cache-slots 64 --out " + out), 0) << output_;
+  EXPECT_TRUE(fs::exists(fs::path(out) / "stats.jsonl"));
+  EXPECT_TRUE(fs::exists(fs::path(out) / "frame_00009.png"));
+}
+
+// The reported repro: a 64 KiB tmpfs fills during the run. Needs root to mount (skipped
+// otherwise). An earlier folder the run did not make is kept, emptied of this run's files.
+TEST_F(RenderCli, ARealFullTmpfsFailsTheRunAndKeepsNoFrameOrStats) {
+  tvt::test::SmallTmpfs disk(dir_ / "disk", 64);
+  if (!disk.ok()) GTEST_SKIP() << disk.why();
+  const std::string out = (disk.dir() / "out").string();
+  fs::create_directories(out);
+  EXPECT_EQ(run("render --quiet --frames 10 --every 1 --width 160 --height 90 --cache-slots 64 --out " + out), 1) << output_;
+  EXPECT_NE(output_.find("No space left on device"), std::string::npos) << output_;
+  EXPECT_NE(output_.find(out + "/"), std::string::npos) << output_;
+  EXPECT_EQ(output_.find("wrote"), std::string::npos) << output_;
+  ASSERT_TRUE(fs::is_directory(out));
+  EXPECT_TRUE(fs::is_empty(out)) << output_;
+}
+
 TEST(MipFilterNames, ParseAndPrintRoundTripAndRejectEverythingElse) {
   using namespace tvt;
   EXPECT_EQ(mip_filter_from_string("trilinear"), VtMipFilter::Trilinear);

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <vector>
 
 #include "support/cli.h"
 #include "support/temp_dir.h"
@@ -106,6 +107,106 @@ TEST_F(StoreCli, BadFlagsNameTheFieldAndWriteNothing) {
   EXPECT_FALSE(fs::exists(path("merged.tvt")));
   EXPECT_NE(run("render --source stored --store " + path("garbage.tvt") + " --out " + path("r")), 0);
   EXPECT_NE(output_.find("garbage.tvt"), std::string::npos) << output_;
+}
+
+}  // namespace
+
+namespace {
+
+size_t count_of(const std::string& text, const std::string& what) {
+  size_t n = 0;
+  for (size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+  return n;
+}
+
+// A store whose index is lost (trailing bytes, a truncated index, a truncated record area with
+// a corrupt record) opens as "0 of 0 pages ok"; verify --salvage writes a new store of exactly
+// its intact records, which verifies clean, and never replaces an existing file without
+// --overwrite. A damaged header cannot be salvaged (it names what is missing).
+TEST_F(StoreCli, VerifySalvageWritesAValidStoreOfTheIntactRecords) {
+  ASSERT_EQ(run(bake_args(path("good.tvt"))), 0) << output_;
+  const std::string good = bytes(path("good.tvt"));
+  const size_t index_at = good.size() - 85 * 40;
+  struct Damage {
+    const char* name;
+    std::string bytes;
+    int intact_pages;  // -1: some, fewer than 85
+  };
+  const std::string cut_records = good.substr(0, good.size() * 6 / 10);
+  std::string cut_flipped = cut_records;  // and one record corrupt
+  cut_flipped[cut_flipped.size() / 2] = char(cut_flipped[cut_flipped.size() / 2] ^ 0x40);
+  const Damage cases[] = {{"trailing.tvt", good + "junk after the index", 85},
+                          {"cut-index.tvt", good.substr(0, index_at + 100), 85},
+                          {"cut-records.tvt", cut_records, -1},
+                          {"cut-flipped.tvt", cut_flipped, -1}};
+  std::vector<int> salvaged;
+  for (const Damage& d : cases) {
+    SCOPED_TRACE(d.name);
+    std::ofstream(path(d.name), std::ios::binary) << d.bytes;
+    EXPECT_EQ(run("verify " + path(d.name)), 1) << output_;
+    EXPECT_NE(output_.find("0 of 0 pages ok"), std::string::npos) << output_;
+    EXPECT_NE(output_.find("--salvage"), std::string::npos) << output_;  // the way out is offered
+    const std::string out = path(std::string("saved-") + d.name);
+    ASSERT_EQ(run("verify " + path(d.name) + " --salvage " + out), 0) << output_;
+    ASSERT_EQ(run("verify " + out), 0) << output_;
+    if (d.intact_pages == 85) {
+      EXPECT_NE(output_.find("85 of 85 pages ok"), std::string::npos) << output_;
+      EXPECT_TRUE(bytes(out) == good);  // the same records in the same order: the same store
+    } else {
+      ASSERT_EQ(run("info --json " + out), 0) << output_;
+      salvaged.push_back(nlohmann::json::parse(output_)["pages"]);
+    }
+  }
+  // Every whole record before the cut (the last one is cut short), less the corrupt one.
+  ASSERT_EQ(salvaged.size(), 2u);
+  EXPECT_GT(salvaged[0], 10);
+  EXPECT_LT(salvaged[0], 85);
+  EXPECT_EQ(salvaged[1], salvaged[0] - 1);
+  // An existing file is replaced only with --overwrite.
+  const std::string before = bytes(path("saved-trailing.tvt"));
+  EXPECT_EQ(run("verify " + path("cut-records.tvt") + " --salvage " + path("saved-trailing.tvt")), 1) << output_;
+  EXPECT_NE(output_.find("saved-trailing.tvt: exists; pass --overwrite"), std::string::npos) << output_;
+  EXPECT_TRUE(bytes(path("saved-trailing.tvt")) == before);
+  EXPECT_EQ(run("verify " + path("cut-records.tvt") + " --salvage " + path("saved-trailing.tvt") + " --overwrite"), 0) << output_;
+  EXPECT_FALSE(bytes(path("saved-trailing.tvt")) == before);
+  // A damaged header: nothing to salvage, nothing written.
+  std::string bad_header = good;
+  bad_header[20] = char(bad_header[20] ^ 1);
+  std::ofstream(path("bad-header.tvt"), std::ios::binary) << bad_header;
+  EXPECT_EQ(run("verify " + path("bad-header.tvt") + " --salvage " + path("never.tvt")), 1) << output_;
+  EXPECT_NE(output_.find("intact header"), std::string::npos) << output_;
+  EXPECT_FALSE(fs::exists(path("never.tvt")));
+  EXPECT_FALSE(fs::exists(path("never.tvt.partial")));
+}
+
+// --source hybrid composes what the store cannot give: a store that cannot be opened is
+// reported once and every page is composed (exit 0); --strict makes it an error (exit 2, nothing
+// written). --strict is only for hybrid.
+TEST_F(StoreCli, HybridRenderWithAnUnopenableStoreComposesEverythingUnlessStrict) {
+  ASSERT_EQ(run(bake_args(path("good.tvt"))), 0) << output_;
+  std::ofstream(path("trailing.tvt"), std::ios::binary) << bytes(path("good.tvt")) << "junk";
+  const std::string render = "TERRAVT_VALIDATION=1 " + std::string(TVT_TERRAVT_EXE) +
+                             " render --quiet --scene " + scene_ + " --frames 3 --every 1 --width 64 --height 36 "
+                             "--cache-slots 64 --page-budget 8 --store " + path("trailing.tvt");
+  auto run_render = [&](const std::string& more) {
+    const std::string cmd = render + " " + more + " >" + path("log.txt") + " 2>&1";
+    const int status = std::system(cmd.c_str());
+    output_ = bytes(path("log.txt"));
+    return WEXITSTATUS(status);
+  };
+  EXPECT_EQ(run_render("--source hybrid --out " + path("degraded")), 0) << output_;
+  EXPECT_EQ(count_of(output_, "trailing.tvt"), 1u) << output_;  // reported once
+  EXPECT_NE(output_.find("composing every page"), std::string::npos) << output_;
+  EXPECT_EQ(output_.find("vulkan"), std::string::npos) << output_;  // no validation message
+  EXPECT_TRUE(fs::exists(path("degraded/stats.jsonl")));
+  EXPECT_TRUE(fs::exists(path("degraded/frame_00002.png")));
+
+  EXPECT_EQ(run_render("--source hybrid --strict --out " + path("strict")), 2) << output_;
+  EXPECT_NE(output_.find("--store: "), std::string::npos) << output_;
+  EXPECT_FALSE(fs::exists(path("strict")));
+  EXPECT_EQ(run_render("--source stored --out " + path("stored")), 2) << output_;  // stored has nothing to show
+  EXPECT_EQ(run_render("--source stored --strict --out " + path("stored")), 2) << output_;
+  EXPECT_NE(output_.find("--strict: only used with --source hybrid"), std::string::npos) << output_;
 }
 
 }  // namespace

@@ -466,9 +466,7 @@ int run_bench_frame(const BenchFrameArgs& a) {
     j["memory_mb"][std::to_string(log2v)] = {{"page_table", table_mb}, {"cache", cache_mb}};
   }
   if (!a.json_out.empty()) {
-    std::ofstream f(a.json_out);
-    if (!f) return fail(cmd, "--json: cannot write " + a.json_out, 1);
-    f << j.dump(2) << "\n";
+    if (auto w = write_text_file(a.json_out, j.dump(2) + "\n"); !w) return fail(cmd, "--json: " + w.error().message, 1);
   }
   return 0;
 }

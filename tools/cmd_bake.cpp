@@ -11,6 +11,7 @@
 #include <iterator>
 #include <memory>
 
+#include "streaming/file_io.h"
 #include "tools/cli_common.h"
 #include "tools/commands.h"
 #include "tools/page_producers.h"
@@ -146,8 +147,8 @@ int run_bake(const BakeArgs& a) {
   }
   if (!a.save_dict.empty()) {
     if (desc.dictionary.empty()) return fail(cmd, "--save-dict: no dictionary (use --dict auto)", 2);
-    const std::string bytes(desc.dictionary.begin(), desc.dictionary.end());
-    if (auto w = write_text_file(a.save_dict, bytes); !w) return fail(cmd, "--save-dict: " + w.error().message, 1);
+    if (auto w = fileio::write_file_durable(a.save_dict, desc.dictionary.data(), desc.dictionary.size()); !w)
+      return fail(cmd, "--save-dict: " + w.error().message, 1);
   }
 
   std::printf("terravt bake: %s, V = 2^%u, %s, %zu pages in the plan, shard %u/%u = %llu pages, zstd %d%s, %s\n",

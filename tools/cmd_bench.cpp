@@ -144,9 +144,7 @@ int run_bench_compose(const BenchComposeArgs& a) {
     j["transition_rich"] = table(rows_dense);
     j["spread"] = table(rows_spread);
     j["fbpb_dpt2_over_blendmap"] = {{"transition_rich", ratio_dense}, {"spread", ratio_spread}};
-    std::ofstream f(a.json_out);
-    if (!f) return fail(cmd, "--json: cannot write " + a.json_out, 1);
-    f << j.dump(2) << "\n";
+    if (auto w = write_text_file(a.json_out, j.dump(2) + "\n"); !w) return fail(cmd, "--json: " + w.error().message, 1);
   }
   return 0;
 }

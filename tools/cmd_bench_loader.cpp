@@ -22,6 +22,7 @@
 #include <thread>
 
 #include "streaming/bake.h"
+#include "streaming/file_io.h"
 #include "streaming/page_loader.h"
 #include "streaming/synthetic_pages.h"
 #include "tools/cli_common.h"
@@ -205,7 +206,8 @@ int run_bench_loader(const BenchLoaderArgs& a) {
   uint64_t stored_total = 0;
   const fs::path raw_file = tmp / "pages.raw";
   {
-    std::ofstream raw(raw_file, std::ios::binary);
+    auto raw = fileio::StagedFile::create(raw_file.string());
+    if (!raw) return fail(cmd, raw.error().message, 1);
     auto decoder = store->make_decoder();
     std::vector<uint8_t> page(page_bytes);
     for (const StoreEntry& e : entries) {
@@ -213,15 +215,15 @@ int run_bench_loader(const BenchLoaderArgs& a) {
       if (store->read_page(e.page, page, *decoder, &message) != PageError::none) return fail(cmd, message, 1);
       blobs.emplace_back(decoder->blob().begin(), decoder->blob().end());
       stored_total += e.stored_bytes;
-      raw.write(reinterpret_cast<const char*>(page.data()), std::streamsize(page.size()));
+      if (auto w = raw->append(page.data(), page.size()); !w) return fail(cmd, w.error().message, 1);
     }
-    if (!raw) return fail(cmd, "cannot write " + raw_file.string(), 1);
+    if (auto w = raw->commit(); !w) return fail(cmd, w.error().message, 1);
   }
   fs::path dict_file;
   if (!store->desc().dictionary.empty()) {
     dict_file = tmp / "store.dict";
-    std::ofstream d(dict_file, std::ios::binary);
-    d.write(reinterpret_cast<const char*>(store->desc().dictionary.data()), std::streamsize(store->desc().dictionary.size()));
+    const auto& dict = store->desc().dictionary;
+    if (auto w = fileio::write_file_durable(dict_file.string(), dict.data(), dict.size()); !w) return fail(cmd, w.error().message, 1);
   }
   const double ratio = double(entries.size() * page_bytes) / double(stored_total);
   double load = 0;
@@ -302,9 +304,7 @@ int run_bench_loader(const BenchLoaderArgs& a) {
     j["loader_over_memory_1"] = r1;
     j["loader_over_memory_n"] = rn;
     j["memory_over_loader_cpu_per_page"] = cpu_ratio;
-    std::ofstream f(a.json_out);
-    if (!f) return fail(cmd, "--json: cannot write " + a.json_out, 1);
-    f << j.dump(2) << "\n";
+    if (auto w = write_text_file(a.json_out, j.dump(2) + "\n"); !w) return fail(cmd, "--json: " + w.error().message, 1);
   }
   return 0;
 }

@@ -342,9 +342,15 @@ int run_compare(const CompareArgs& a) {
   }
   for (const auto& [m, b] : per_mip) j["bytes_per_page_by_mip"][std::to_string(m)] = b;
   const std::string report = (std::filesystem::path(a.out) / "compare.json").string();
-  std::ofstream(report) << j.dump(2) << "\n";
   const std::string plot = (std::filesystem::path(a.out) / "disk_vs_v.svg").string();
-  if (!curve.empty()) std::ofstream(plot) << svg_plot(curve, double(input_packed));
+  // The plot first, the report last: a compare.json says both were written.
+  if (!curve.empty())
+    if (auto w = write_text_file(plot, svg_plot(curve, double(input_packed))); !w) return fail(cmd, w.error().message, 1);
+  if (auto w = write_text_file(report, j.dump(2) + "\n"); !w) {
+    std::error_code ignored;
+    std::filesystem::remove(plot, ignored);
+    return fail(cmd, w.error().message, 1);
+  }
 
   std::printf("\n%-22s %12s %12s %12s %12s %12s\n", "", "frame ms", "pages/s run", "ms/page", "GPU MB", "pages");
   auto row = [&](const char* name, const RunResult& r, double ms_page) {

@@ -82,30 +82,38 @@ int run_compose(const ComposeArgs& a) {
   std::unique_ptr<vk::Context> context;
   std::unique_ptr<GpuComposer> composer;
   std::vector<ImageRGBA8> panels;
+  // --panels files written so far: a run that fails later removes them, so the panels and the
+  // sheet are written all or none (the sheet last).
+  std::vector<std::string> panel_files;
+  auto failed = [&](const std::string& message, int code) {
+    std::error_code ignored;
+    for (const std::string& f : panel_files) std::filesystem::remove(f, ignored);
+    return fail(cmd, message, code);
+  };
   for (Method method : methods) {
     ComposeOptions options = options_for(method);
     options.supersample = a.supersample;
     auto packed = pack_scene(assets.value(), options);
-    if (!packed) return fail(cmd, packed.error().message, 2);
+    if (!packed) return failed(packed.error().message, 2);
     const auto tm = std::chrono::steady_clock::now();
     std::vector<std::vector<uint8_t>> texels;
     if (a.device == "gpu") {
       if (!context) {
         auto ctx = gpu_context(a.gpu_name);
-        if (!ctx) return fail(cmd, ctx.error().message + " (use --device cpu for the CPU reference)", 1);
+        if (!ctx) return failed(ctx.error().message + " (use --device cpu for the CPU reference)", 1);
         context = std::move(ctx.value());
         auto c = GpuComposer::create(*context, packed.value(), uint32_t(std::min<size_t>(pages.size(), 64)));
-        if (!c) return fail(cmd, c.error().message, 1);
+        if (!c) return failed(c.error().message, 1);
         composer = std::move(c.value());
       }
       composer->set_params(packed->params);
       auto composed = composer->compose_pages(pages);
-      if (!composed) return fail(cmd, composed.error().message, 1);
+      if (!composed) return failed(composed.error().message, 1);
       texels = std::move(composed.value());
     } else {
       for (const PageId& id : pages) {
         auto page = compose_page_reference(packed.value(), id);
-        if (!page) return fail(cmd, page.error().message, 1);
+        if (!page) return failed(page.error().message, 1);
         texels.push_back(std::move(page.value()));
       }
     }
@@ -114,7 +122,8 @@ int run_compose(const ComposeArgs& a) {
     if (!a.panels_dir.empty()) {
       const std::string path = (std::filesystem::path(a.panels_dir) / ("compose-" + std::string(to_string(method)) + ".png")).string();
       auto s = write_image(path, panels.back());
-      if (!s) return fail(cmd, s.error().message, 1);
+      if (!s) return failed(s.error().message, 1);
+      panel_files.push_back(path);
     }
   }
 
@@ -135,7 +144,7 @@ int run_compose(const ComposeArgs& a) {
     draw_label(sheet, ox + 4, oy + 4, to_string(methods[i]), std::max(1, region.width / 256));
   }
   auto s = write_image(a.out, sheet);
-  if (!s) return fail(cmd, s.error().message, 1);
+  if (!s) return failed(s.error().message, 1);
   std::printf("wrote %s (%dx%d) in %.2f s\n", a.out.c_str(), sheet.width, sheet.height, seconds_since(t0));
   return 0;
 }

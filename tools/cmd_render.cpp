@@ -9,7 +9,6 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <memory>
 #include <numbers>
 #include <optional>
@@ -17,6 +16,7 @@
 #include "compose/packed_scene.h"
 #include "render/camera_file.h"
 #include "render/flythrough.h"
+#include "streaming/file_io.h"
 #include "streaming/page_store.h"
 #include "tools/cli_common.h"
 #include "tools/commands.h"
@@ -55,14 +55,16 @@ struct RenderArgs {
   bool debug = false;       // also write cache atlas, page table and feedback images
   bool debug_mips = false;  // colour every texel by the mip its data comes from
   bool overwrite = false;   // replace an earlier run's output in `out` / an existing save_camera file
+  bool strict = false;      // hybrid: a store that cannot be opened fails the run instead of degrading
   // Given on the command line (an empty value is then an error, not "use the default").
   bool camera_given = false, save_camera_given = false, gpu_given = false;
 };
 
-// What a run writes into its folder: frames, debug images, stats.
+// What a run writes into its folder: frames, debug images, stats (and the temporary stats of a
+// run that was killed).
 bool is_run_output(const std::filesystem::path& file) {
   const std::string name = file.filename().string(), ext = file.extension().string();
-  if (name == "stats.jsonl") return true;
+  if (name == "stats.jsonl" || name.starts_with("stats.jsonl.tmp-")) return true;
   for (const char* prefix : {"frame_", "atlas_", "pagetable_", "feedback_"}) {
     const std::string_view p(prefix);
     if (name.size() == p.size() + 5 + ext.size() && name.starts_with(p) && (ext == ".png" || ext == ".exr") &&
@@ -104,21 +106,51 @@ Status check_output_folder(const std::string& out, bool overwrite) {
   return Ok{};
 }
 
+// The files of this run in --out. stats.jsonl is staged under a temporary name and renamed
+// into place only once every frame is written: a stats.jsonl in the folder says the run
+// completed. A run that fails part-way takes back what it wrote (take_back()).
+struct RunOutput {
+  std::string folder;
+  bool made_folder = false;  // the folder did not exist before this run
+  fileio::StagedFile stats;
+  std::vector<std::filesystem::path> files;  // frames and debug images written so far
+
+  bool is_open() const { return stats.is_open(); }
+  Status write_image_file(const std::string& name, const ImageRGBA8& image) {
+    const std::filesystem::path file = std::filesystem::path(folder) / name;
+    if (auto w = write_image(file.string(), image); !w) return w;
+    files.push_back(file);
+    return Ok{};
+  }
+  // Removes the frames written so far and the temporary stats (and the folder, if this run
+  // made it and it is empty again).
+  void take_back() {
+    std::error_code ec;
+    for (const auto& f : files) std::filesystem::remove(f, ec);
+    files.clear();
+    stats = fileio::StagedFile{};
+    if (made_folder && std::filesystem::is_empty(folder, ec)) std::filesystem::remove(folder, ec);
+  }
+};
+
 // At the first frame, once everything the run needs exists: makes the folder, removes an
-// earlier run's output (check_output_folder() allowed it: --overwrite) and opens stats.jsonl.
-Status open_output_folder(const std::string& out, std::ofstream& stats) {
+// earlier run's output (check_output_folder() allowed it: --overwrite) and starts stats.jsonl.
+Status open_output_folder(const std::string& out, RunOutput& run) {
   namespace fs = std::filesystem;
   std::error_code ec;
+  run.folder = out;
+  run.made_folder = !fs::exists(fs::symlink_status(out, ec));
   fs::create_directories(out, ec);
-  if (ec || !fs::is_directory(out)) return make_error("--out: cannot create folder " + out);
+  if (ec || !fs::is_directory(out)) return make_error("--out: cannot create folder " + out + (ec ? " (" + ec.message() + ")" : ""));
   std::vector<fs::path> earlier;
   for (const auto& e : fs::directory_iterator(out, ec))
     if (is_run_output(e.path())) earlier.push_back(e.path());
   // Symbolic links are removed, never followed: a stats.jsonl linking elsewhere is not written through.
   for (const fs::path& f : earlier)
     if (!fs::remove(f, ec)) return make_error("--out: cannot remove " + f.string() + " of an earlier run");
-  stats.open(fs::path(out) / "stats.jsonl");
-  if (!stats) return make_error("--out: cannot write stats.jsonl in " + out);
+  auto stats = fileio::StagedFile::create((fs::path(out) / "stats.jsonl").string());
+  if (!stats) return make_error("--out: " + stats.error().message);
+  run.stats = std::move(stats.value());
   return Ok{};
 }
 
@@ -152,6 +184,7 @@ int run_render(const RenderArgs& a) {
   if (!source) return fail(cmd, "--source: procedural, stored or hybrid, got '" + a.source + "'", 2);
   if (*source != VtSource::procedural && a.store.empty()) return fail(cmd, "--store: --source " + a.source + " needs a page store (terravt bake)", 2);
   if (*source == VtSource::procedural && !a.store.empty()) return fail(cmd, "--store: only used with --source stored or hybrid", 2);
+  if (a.strict && *source != VtSource::hybrid) return fail(cmd, "--strict: only used with --source hybrid", 2);
   if (a.loader_threads < 1 || a.loader_threads > 64) return fail(cmd, "--loader-threads: must be between 1 and 64", 2);
   if (a.staging < 1 || a.staging > 4096) return fail(cmd, "--staging: must be between 1 and 4096", 2);
   const auto feedback = feedback_mode_from_string(a.feedback);
@@ -160,10 +193,20 @@ int run_render(const RenderArgs& a) {
   const auto mip_filter = mip_filter_from_string(a.vt_filter);
   if (!mip_filter) return fail(cmd, "--vt-filter: trilinear, bilinear, brilinear or brilinear:W with W in [0, 1], got '" + a.vt_filter + "'", 2);
   std::shared_ptr<const PageStoreReader> store;
+  VtSource vt_source = *source;
   if (!a.store.empty()) {
     auto opened = PageStoreReader::open(a.store);
-    if (!opened) return fail(cmd, "--store: " + opened.error().message, 2);
-    store = std::move(opened.value());
+    if (opened) {
+      store = std::move(opened.value());
+    } else if (*source == VtSource::hybrid && !a.strict) {
+      // Hybrid composes whatever the store cannot give: without a store, that is every page.
+      std::fprintf(stderr, "terravt render: --store: %s; composing every page instead (hybrid; --strict makes this an error, "
+                           "terravt verify --salvage can rescue the intact pages)\n",
+                   opened.error().message.c_str());
+      vt_source = VtSource::procedural;
+    } else {
+      return fail(cmd, "--store: " + opened.error().message, 2);
+    }
   }
   // Inputs first: a bad scene or a missing device leaves no output folder behind.
   auto assets = load_scene_and_assets(a.scene);
@@ -212,7 +255,7 @@ int run_render(const RenderArgs& a) {
                          g.device_name() + ")", 2);
   // Made at the first frame, when the VT, the renderer and every device resource exist: a run
   // that cannot start writes nothing.
-  std::ofstream stats_file;
+  RunOutput run;
 
   FlythroughOptions fo;
   fo.method = *method;
@@ -225,7 +268,7 @@ int run_render(const RenderArgs& a) {
   fo.vt.cache_slots = a.cache_slots;
   fo.vt.page_budget = a.page_budget;
   fo.vt.window_pages = a.window;
-  fo.vt.source = *source;
+  fo.vt.source = vt_source;
   fo.vt.store = store;
   fo.vt.loader.threads = a.loader_threads;
   fo.vt.loader.staging_slots = a.staging;
@@ -239,21 +282,21 @@ int run_render(const RenderArgs& a) {
   std::printf("terravt render: %s, V = 2^%u, %ux%u, %u frames, method %s, source %s, cache %u pages, budget %u/frame, "
               "%s filter, device %s\n",
               assets->desc.source_path.c_str(), assets->desc.vt.log2_size, a.width, a.height, frames, a.method.c_str(),
-              a.source.c_str(), a.cache_slots, a.page_budget, mip_filter_name(*mip_filter).c_str(), g.device_name().c_str());
+              (vt_source == *source ? a.source : a.source + " without its store").c_str(), a.cache_slots, a.page_budget, mip_filter_name(*mip_filter).c_str(), g.device_name().c_str());
   std::printf("camera: %s\n", camera->describe().c_str());
   uint32_t written = 0;
   std::string write_error;
   auto summary = run_flythrough(g, assets.value(), fo, [&](const FlythroughFrame& fr, const FlythroughViews& views) {
     const VtFrameStats& s = fr.vt;
-    if (!stats_file.is_open())
-      if (auto opened = open_output_folder(a.out, stats_file); !opened) {
+    if (!run.is_open())
+      if (auto opened = open_output_folder(a.out, run); !opened) {
         write_error = opened.error().message;
         return false;
       }
     if (fr.index % a.every == 0 || fr.index + 1 == frames) {
       char name[64];
       std::snprintf(name, sizeof(name), "frame_%05u.%s", fr.index, a.format.c_str());
-      if (auto w = write_image((std::filesystem::path(a.out) / name).string(), views.frame()); !w) {
+      if (auto w = run.write_image_file(name, views.frame()); !w) {
         write_error = w.error().message;
         return false;
       }
@@ -263,7 +306,7 @@ int run_render(const RenderArgs& a) {
             {"atlas", &views.atlas}, {"pagetable", &views.page_table}, {"feedback", &views.feedback}};
         for (const auto& [what, fn] : extra) {
           std::snprintf(name, sizeof(name), "%s_%05u.png", what, fr.index);
-          if (auto w = write_image((std::filesystem::path(a.out) / name).string(), (*fn)()); !w) {
+          if (auto w = run.write_image_file(name, (*fn)()); !w) {
             write_error = w.error().message;
             return false;
           }
@@ -295,7 +338,7 @@ int run_render(const RenderArgs& a) {
                       {"cpu_load_ms", s.materials.last_cpu_load_ms},
                       {"cpu_load_total_ms", s.materials.cpu_load_ms},
                       {"load_failures", s.materials.load_failures}};
-    if (*source != VtSource::procedural) {
+    if (vt_source != VtSource::procedural) {
       j["stored"] = {{"requested", s.stored.requested}, {"landed", s.stored.landed}, {"failed", s.stored.failed},
                      {"cancelled", s.stored.cancelled}, {"outstanding", s.stored.outstanding},
                      {"staging_in_use", s.stored.staging_in_use}, {"read_ms", s.stored.read_ms},
@@ -310,7 +353,10 @@ int run_render(const RenderArgs& a) {
       j["gpu"] = {{"frame", fr.gpu_ms_frame},         {"ms", fr.gpu_ms},
                   {"vt_ms", fr.gpu_stage_ms[0]},      {"terrain_ms", fr.gpu_stage_ms[1]},
                   {"compaction_ms", fr.gpu_stage_ms[2]}};
-    stats_file << j.dump() << "\n";
+    if (auto w = run.stats.append(j.dump() + "\n"); !w) {
+      write_error = w.error().message;
+      return false;
+    }
     if (!a.quiet)
       std::fprintf(stderr, "\r  frame %u/%u  %6.1f ms  resident %u  +%u pages  bias %u%s   ", fr.index + 1, frames,
                    fr.total_ms, s.residency.resident, s.composed + s.stored.landed, s.residency.mip_bias,
@@ -318,8 +364,15 @@ int run_render(const RenderArgs& a) {
     return true;
   });
   if (!a.quiet) std::fprintf(stderr, "\n");
-  if (!write_error.empty()) return fail(cmd, write_error, 1);
-  if (!summary) return fail(cmd, summary.error().message, 2);
+  if (write_error.empty() && summary && run.is_open())
+    if (auto committed = run.stats.commit(); !committed) write_error = committed.error().message;
+  if (!write_error.empty() || !summary) {
+    run.take_back();
+    const std::string why = write_error.empty() ? summary.error().message : write_error;
+    const bool started = !run.folder.empty();  // the folder was touched: say what is left of the run
+    return fail(cmd, why + (started ? "; no frame or stats of this run is kept in " + a.out : std::string()),
+                write_error.empty() ? 2 : 1);
+  }
   const FlythroughSummary& s = summary.value();
   std::printf("%u frames in %.1f s (%.1f ms/frame), %llu pages composed, %llu loaded, max mip bias %u%s\n", s.frames,
               s.seconds, 1000.0 * s.seconds / s.frames, (unsigned long long)s.pages_composed,
@@ -374,6 +427,9 @@ const CommandRegistrar k_register{
       app.add_option("--detail-relief", a->detail_relief, "Metres of material height relief for the detail normal (0: off)")->capture_default_str();
       app.add_option("--frames-in-flight", a->frames_in_flight, "Frames recorded ahead of the GPU (1: wait for each frame)")->capture_default_str();
       app.add_flag("--sync-loads", a->sync_loads, "Wait for each frame's stored pages (frame-exact comparisons)");
+      app.add_flag("--strict", a->strict,
+                   "With --source hybrid: a --store that cannot be opened is an error (default: reported once, every "
+                   "page composed)");
       const CLI::Option* gpu = app.add_option("--gpu", a->gpu_name, "Vulkan device name substring or index");
       app.add_flag("--quiet", a->quiet, "No progress line");
       app.add_flag("--debug", a->debug, "With each written frame, also write the cache atlas, page table and feedback images");

@@ -45,6 +45,8 @@ struct VerifyArgs {
   std::string store;
   uint32_t threads = 0;
   uint32_t max_lines = 50;
+  std::string salvage;     // write the intact records to this new store
+  bool overwrite = false;  // replace an existing --salvage file
 };
 
 int run_verify(const VerifyArgs& a) {
@@ -55,7 +57,17 @@ int run_verify(const VerifyArgs& a) {
   if (v.problems.size() > a.max_lines) std::printf("... and %zu more problems\n", v.problems.size() - a.max_lines);
   std::printf("%s: %llu of %llu pages ok, %zu problems\n", a.store.c_str(), (unsigned long long)v.ok,
               (unsigned long long)v.pages, v.problems.size());
-  return v.problems.empty() ? 0 : 1;
+  if (a.salvage.empty()) {
+    if (!v.problems.empty()) std::printf("(terravt verify %s --salvage NEW.tvt writes its intact pages to a new store)\n", a.store.c_str());
+    return v.problems.empty() ? 0 : 1;
+  }
+  auto s = salvage_store(a.store, a.salvage, a.overwrite);
+  if (!s) return fail("verify", "--salvage: " + s.error().message, 1);
+  std::printf("salvaged %llu pages (the header lists %llu; %llu duplicate records and %llu other bytes skipped) into %s, "
+              "%llu bytes, in %.2f s\n",
+              (unsigned long long)s->pages, (unsigned long long)s->declared_pages, (unsigned long long)s->duplicates,
+              (unsigned long long)s->skipped_bytes, a.salvage.c_str(), (unsigned long long)s->file_bytes, s->seconds);
+  return 0;
 }
 
 const CommandRegistrar k_verify{
@@ -64,6 +76,10 @@ const CommandRegistrar k_verify{
       app.add_option("store", a->store, "Page store file")->required();
       app.add_option("--threads", a->threads, "Reader threads (0: all cores)")->capture_default_str();
       app.add_option("--max-lines", a->max_lines, "Problems printed at most")->capture_default_str();
+      app.add_option("--salvage", a->salvage,
+                     "Also write every intact page record to this new store (the index may be lost or damaged; "
+                     "needs an intact header)");
+      app.add_flag("--overwrite", a->overwrite, "Replace an existing --salvage file");
       return [a] { return run_verify(*a); };
     }};
 
