@@ -13,7 +13,6 @@
 #include <cstring>
 #include <filesystem>
 #include <limits>
-#include <mutex>
 
 namespace tvt::fileio {
 
@@ -31,21 +30,9 @@ std::atomic<uint64_t> g_written{0};
 std::atomic<uint64_t> g_fail_after{std::numeric_limits<uint64_t>::max()};
 std::atomic<int> g_fail_errno{ENOSPC};
 
-void read_fault_environment() {
-  static std::once_flag once;
-  std::call_once(once, [] {
-    const char* text = std::getenv("TERRAVT_FAULT_WRITE_AFTER");
-    if (!text || !*text) return;
-    char* end = nullptr;
-    const unsigned long long after = std::strtoull(text, &end, 10);
-    if (end && *end == '\0') inject_write_failure(after, ENOSPC);
-  });
-}
-
 // One pwrite, unless inject_write_failure() says the disk is full: then fewer bytes, or -1
 // with errno set.
 ssize_t checked_pwrite(int fd, const void* data, size_t bytes, off_t offset) {
-  read_fault_environment();
   const uint64_t limit = g_fail_after.load(std::memory_order_relaxed);
   if (limit != std::numeric_limits<uint64_t>::max()) {
     const uint64_t done = g_written.load(std::memory_order_relaxed);

@@ -86,8 +86,8 @@ class StagedFile {
 // bytes through pwrite_full (every StagedFile, durable write and page-store write goes through
 // it), each further write fails with `err`; a write crossing the mark is first cut short
 // there, as on a full disk. after_bytes = UINT64_MAX turns it off and resets the count.
-// The environment variable TERRAVT_FAULT_WRITE_AFTER=<bytes> sets the same with ENOSPC at the
-// first write, so a test can make the terravt executable meet a full disk at a chosen byte.
+// The terravt executable sets it from TERRAVT_FAULT_WRITE_AFTER=<bytes> (ENOSPC), so a test
+// can make it meet a full disk at a chosen byte; the library itself reads no environment.
 void inject_write_failure(uint64_t after_bytes, int err);
 // Size of an open file, or an error naming `path`.
 Result<uint64_t> file_size(int fd, const std::string& path);
