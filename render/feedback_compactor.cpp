@@ -190,7 +190,8 @@ FeedbackResult FeedbackCompactor::parse(const Slot& slot) const {
   std::memcpy(&header, bytes, sizeof(header));
   TVT_CHECK(header.count <= options_.table_capacity);
   std::vector<gpu::TvtFeedbackEntry> entries(header.count);
-  std::memcpy(entries.data(), bytes + sizeof(header), entries.size() * sizeof(gpu::TvtFeedbackEntry));
+  // An empty list (a frame of sky) has no data(): memcpy from or to null is undefined even for 0 bytes.
+  if (!entries.empty()) std::memcpy(entries.data(), bytes + sizeof(header), entries.size() * sizeof(gpu::TvtFeedbackEntry));
   FeedbackResult r;
   r.frame = slot.frame;
   r.overflow = header.overflow_texels != 0;

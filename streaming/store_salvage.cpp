@@ -79,6 +79,8 @@ Result<SalvageReport> salvage_store(const std::string& damaged, const std::strin
   // differ: that is the damage being salvaged).
   const uint8_t* h = file.data();
   const uint64_t declared = sf::get_u64(h + sf::off::index_offset) + sf::get_u64(h + sf::off::index_bytes);
+  if (std::memcmp(h, sf::k_magic.data(), sf::k_magic.size()) == 0 && declared == 0)
+    return make_error(damaged + ": header: an unfinished bake (no index yet); run the same terravt bake again to resume it");
   std::vector<std::string> problems;
   const auto header = sf::decode_header(file.first(sf::k_header_bytes), declared, damaged, problems);
   if (!header) {
