@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <deque>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "compose/packed_scene.h"
@@ -43,6 +44,8 @@ struct VirtualTexture::Impl {
   std::deque<uint64_t> in_flight;  // frames begun and not known complete, oldest first
   bool recorded = true;  // record() followed the last begin_frame()
   FrameStats stats;
+  VkMemoryBarrier2 before{}, after{};  // what dependencies() points at
+  VirtualTextureDependencies dependencies;
 };
 
 VirtualTexture::VirtualTexture(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -60,6 +63,22 @@ Result<std::unique_ptr<VirtualTexture>> VirtualTexture::create(const DeviceHandl
 
   auto impl = std::make_unique<Impl>();
   impl->desc = desc;
+  // The legacy stage bits have the same values as their VK_PIPELINE_STAGE_2_* counterparts.
+  const VkPipelineStageFlags2 consumers = desc.consumer_stages;
+  const VkPipelineStageFlags2 producers = VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_TRANSFER_BIT;
+  impl->before.sType = impl->after.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER_2;
+  impl->before.srcStageMask = consumers;  // write-after-read: an execution dependency
+  impl->before.dstStageMask = producers;
+  impl->after.srcStageMask = producers;
+  impl->after.srcAccessMask = VK_ACCESS_2_SHADER_WRITE_BIT | VK_ACCESS_2_TRANSFER_WRITE_BIT;
+  impl->after.dstStageMask = consumers;
+  impl->after.dstAccessMask = VK_ACCESS_2_SHADER_READ_BIT;
+  for (auto [info, barrier] : {std::pair{&impl->dependencies.before, &impl->before},
+                               std::pair{&impl->dependencies.after, &impl->after}}) {
+    info->sType = VK_STRUCTURE_TYPE_DEPENDENCY_INFO;
+    info->memoryBarrierCount = 1;
+    info->pMemoryBarriers = barrier;
+  }
   auto context = tvt::vk::Context::adopt(device);
   if (!context) return context.error();  // check_device()'s kind: invalid_argument or unsupported_device
   impl->context = std::move(context.value());
@@ -163,15 +182,17 @@ Status VirtualTexture::record(VkCommandBuffer cmd) {
                                : std::string("record(): no frame begun (call begin_frame() first)"));
   if (cmd == VK_NULL_HANDLE) return invalid("record(): cmd is VK_NULL_HANDLE");
   // Earlier frames' reads by the client's stages end before this frame rewrites what they read.
-  vkCmdPipelineBarrier(cmd, m.desc.consumer_stages, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
-                       0, 0, nullptr, 0, nullptr, 0, nullptr);
+  if (m.desc.record_barriers)
+    vkCmdPipelineBarrier(cmd, m.desc.consumer_stages, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+                         0, 0, nullptr, 0, nullptr, 0, nullptr);
   const tvt::Status s = m.vt->record(cmd);
   m.vt->end_frame();
   m.recorded = true;
   // This frame's writes become visible to the client's stages recorded next.
-  tvt::vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
-                                   VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT, m.desc.consumer_stages,
-                                   VK_ACCESS_SHADER_READ_BIT);
+  if (m.desc.record_barriers)
+    tvt::vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+                                     VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT, m.desc.consumer_stages,
+                                     VK_ACCESS_SHADER_READ_BIT);
   const tvt::VtFrameStats& vs = m.vt->stats();
   m.stats.produced = uint32_t(m.vt->last_completed().size());
   m.stats.failed = vs.compose_failed + vs.missing + vs.stored.failed;
@@ -182,5 +203,7 @@ Status VirtualTexture::record(VkCommandBuffer cmd) {
 }
 
 const FrameStats& VirtualTexture::stats() const { return impl_->stats; }
+
+const VirtualTextureDependencies& VirtualTexture::dependencies() const { return impl_->dependencies; }
 
 }  // namespace terravt

@@ -147,6 +147,48 @@ TEST(VirtualTexture, ComposesTheRequestedPagesIntoTheClientsCommandBuffersAndMap
   }
 }
 
+TEST(VirtualTexture, ARenderGraphPlacesTheHandedBackDependenciesItself) {
+  Client client(2);
+  ASSERT_TRUE(client.device);
+  terravt::VirtualTextureDesc d = small_desc();
+  d.consumer_stages = VK_PIPELINE_STAGE_VERTEX_SHADER_BIT | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT;
+  d.record_barriers = false;
+  auto created = terravt::VirtualTexture::create(client.h, d);
+  ASSERT_TRUE(created.ok()) << created.error().message;
+  terravt::VirtualTexture& vt = **created;
+  const terravt::VirtualTextureDependencies& dep = vt.dependencies();
+  ASSERT_EQ(dep.before.sType, VK_STRUCTURE_TYPE_DEPENDENCY_INFO);
+  ASSERT_EQ(dep.before.memoryBarrierCount, 1u);
+  ASSERT_EQ(dep.after.memoryBarrierCount, 1u);
+  const VkMemoryBarrier2& before = dep.before.pMemoryBarriers[0];
+  const VkMemoryBarrier2& after = dep.after.pMemoryBarriers[0];
+  // before: the consumers' earlier reads, then terravt's writes (execution only).
+  EXPECT_EQ(before.srcStageMask, VkPipelineStageFlags2(d.consumer_stages));
+  EXPECT_EQ(before.dstStageMask, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_TRANSFER_BIT);
+  // after: terravt's writes made visible to the consumers' shader reads.
+  EXPECT_EQ(after.srcStageMask, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_TRANSFER_BIT);
+  EXPECT_EQ(after.srcAccessMask, VK_ACCESS_2_SHADER_WRITE_BIT | VK_ACCESS_2_TRANSFER_WRITE_BIT);
+  EXPECT_EQ(after.dstStageMask, VkPipelineStageFlags2(d.consumer_stages));
+  EXPECT_EQ(after.dstAccessMask, VkAccessFlags2(VK_ACCESS_2_SHADER_READ_BIT));
+
+  // The graph places them around record(); frames run clean under synchronisation validation.
+  const int64_t centre = int64_t(1) << (vt.info().log2_size - 1);
+  const uint32_t px = uint32_t(centre / vt.info().page_texels);
+  const terravt::PageRequest wanted[] = {{0, px, px, 1}};
+  uint32_t produced = 0;
+  for (uint64_t f = 0; f < 4; ++f) {
+    VkCommandBuffer cmd = client.begin(f);
+    ASSERT_TRUE(vt.begin_frame(f, f >= 2 ? std::optional<uint64_t>(f - 2) : std::nullopt, centre, centre, wanted).ok());
+    vkCmdPipelineBarrier2(cmd, &dep.before);
+    ASSERT_TRUE(vt.record(cmd).ok());
+    vkCmdPipelineBarrier2(cmd, &dep.after);
+    client.submit(f);
+    produced += vt.stats().produced;
+  }
+  vkDeviceWaitIdle(client.h.device);
+  EXPECT_GE(produced, 2u);
+}
+
 TEST(VirtualTexture, MisuseOfTheFrameProtocolIsAnErrorAndChangesNothing) {
   Client client(3);
   ASSERT_TRUE(client.device);

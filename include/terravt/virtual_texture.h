@@ -16,7 +16,7 @@
 // too many frames in flight, record() twice or without begin_frame() — is an error
 // (ErrorKind::misuse) and changes nothing.
 //
-// Synchronisation: record() first waits (execution dependency) for reads of the cache, table
+// Synchronisation (desc.record_barriers; or placed by the client from dependencies()): record() first waits (execution dependency) for reads of the cache, table
 // and description by earlier frames' `consumer_stages`, then writes them with compute and
 // transfer commands, then makes the writes visible to `consumer_stages` of the commands
 // recorded after it in the same queue. The cache stays in VK_IMAGE_LAYOUT_GENERAL.
@@ -56,6 +56,18 @@ struct VirtualTextureDesc {
   uint32_t frames_in_flight = 2;     // 1 ... 8
   // Stages of the client's passes that read the VT (fragment by default; vertex or compute too).
   VkPipelineStageFlags consumer_stages = VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT;
+  // true: record() records the barriers between the client's consumer stages and its own work.
+  // false: it records none of them; the client (a render graph) places dependencies() itself,
+  // `before` ahead of record()'s commands and `after` between them and the first consumer.
+  bool record_barriers = true;
+};
+
+// The two dependencies between the client's consumer stages and terravt's work, as a render
+// graph places them (vkCmdPipelineBarrier2; synchronization2). The pointers inside stay valid
+// as long as the VirtualTexture.
+struct VirtualTextureDependencies {
+  VkDependencyInfo before{};  // earlier frames' consumer reads -> this frame's compute/transfer writes
+  VkDependencyInfo after{};   // this frame's compute/transfer writes -> consumer shader reads
 };
 
 struct VirtualTextureInfo {
@@ -100,6 +112,8 @@ class TERRAVT_API VirtualTexture {
 
   VirtualTextureInfo info() const;
   VirtualTextureBindings bindings() const;
+  // The barriers record() places itself when desc.record_barriers is true.
+  const VirtualTextureDependencies& dependencies() const;
 
   // CPU only. camera_texel_*: the level-0 texel under the camera (the page-table windows
   // centre there; clamped to the terrain).
