@@ -1,5 +1,7 @@
 #include "gpu/frame_ring.h"
 
+#include "gpu/command_slots.h"
+
 #include <algorithm>
 #include <chrono>
 #include <string>
@@ -19,11 +21,7 @@ Result<std::unique_ptr<FrameRing>> FrameRing::create(vk::Context& context, uint3
   std::unique_ptr<FrameRing> r(new FrameRing());
   r->context_ = &context;
 
-  VkCommandPoolCreateInfo pci{};
-  pci.sType = VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO;
-  pci.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
-  pci.queueFamilyIndex = context.queue_family();
-  TVT_VK_CHECK(vkCreateCommandPool(device, &pci, context.allocation_callbacks(), &r->pool_));
+  r->pool_ = vk::create_command_pool(context);
 
   // Timestamps: only when the queue family counts them (timestampValidBits > 0).
   uint32_t families = 0;
@@ -45,16 +43,9 @@ Result<std::unique_ptr<FrameRing>> FrameRing::create(vk::Context& context, uint3
 
   r->slots_.resize(frames_in_flight);
   for (Slot& s : r->slots_) {
-    VkFenceCreateInfo fci{};
-    fci.sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO;
-    fci.flags = VK_FENCE_CREATE_SIGNALED_BIT;
-    TVT_VK_CHECK(vkCreateFence(device, &fci, context.allocation_callbacks(), &s.fence));
-    VkCommandBufferAllocateInfo cai{};
-    cai.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO;
-    cai.commandPool = r->pool_;
-    cai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
-    cai.commandBufferCount = 1;
-    TVT_VK_CHECK(vkAllocateCommandBuffers(device, &cai, &s.cmd));
+    const vk::CommandSlot cs = vk::create_command_slot(context, r->pool_);
+    s.fence = cs.fence;
+    s.cmd = cs.cmd;
   }
   return r;
 }

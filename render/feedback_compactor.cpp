@@ -8,6 +8,7 @@
 #include <cstring>
 #include <string>
 
+#include "gpu/command_slots.h"
 #include "shaders/shared/feedback_types.h"
 
 namespace tvt {
@@ -56,7 +57,6 @@ Result<std::unique_ptr<FeedbackCompactor>> FeedbackCompactor::create(vk::Context
 
   std::unique_ptr<FeedbackCompactor> c(new FeedbackCompactor(context));
   c->options_ = options;
-  const VkDevice device = context.device();
 
   const vk::ComputeBinding insert_bindings[] = {{TVT_BIND_FEEDBACK_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
                                                 {TVT_BIND_FEEDBACK_TABLE, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
@@ -77,11 +77,7 @@ Result<std::unique_ptr<FeedbackCompactor>> FeedbackCompactor::create(vk::Context
       gpu::TvtFeedbackEntry{gpu::TVT_FEEDBACK_EMPTY_WORD, gpu::TVT_FEEDBACK_EMPTY_WORD, 0u});
   context.upload(c->table_, empty.data(), table_bytes);
 
-  VkCommandPoolCreateInfo pci{};
-  pci.sType = VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO;
-  pci.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
-  pci.queueFamilyIndex = context.queue_family();
-  TVT_VK_CHECK(vkCreateCommandPool(device, &pci, context.allocation_callbacks(), &c->command_pool_));
+  c->command_pool_ = vk::create_command_pool(context);
 
   const VkDeviceSize list_bytes = sizeof(gpu::TvtFeedbackListHeader) + table_bytes;
   c->slots_.resize(options.ring_size);
@@ -94,16 +90,9 @@ Result<std::unique_ptr<FeedbackCompactor>> FeedbackCompactor::create(vk::Context
     s.gather_set = context.allocate_descriptor_set(c->gather_pipeline_);
     s.gather_set.write_buffer(TVT_BIND_FEEDBACK_TABLE, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->table_);
     s.gather_set.write_buffer(TVT_BIND_FEEDBACK_LIST, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, s.list);
-    VkFenceCreateInfo fci{};
-    fci.sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO;
-    fci.flags = VK_FENCE_CREATE_SIGNALED_BIT;
-    TVT_VK_CHECK(vkCreateFence(device, &fci, context.allocation_callbacks(), &s.fence));
-    VkCommandBufferAllocateInfo cai{};
-    cai.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO;
-    cai.commandPool = c->command_pool_;
-    cai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
-    cai.commandBufferCount = 1;
-    TVT_VK_CHECK(vkAllocateCommandBuffers(device, &cai, &s.own_cmd));
+    const vk::CommandSlot cs = vk::create_command_slot(context, c->command_pool_);
+    s.fence = cs.fence;
+    s.own_cmd = cs.cmd;
   }
   return c;
 }

@@ -1,0 +1,28 @@
+// Command pools and slots for terravt's own submission rings (see command_slots.h).
+#include "gpu/command_slots.h"
+
+namespace tvt::vk {
+
+VkCommandPool create_command_pool(const Context& context) {
+  auto pci = init<VkCommandPoolCreateInfo>(VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO);
+  pci.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
+  pci.queueFamilyIndex = context.queue_family();
+  VkCommandPool pool = VK_NULL_HANDLE;
+  TVT_VK_CHECK(vkCreateCommandPool(context.device(), &pci, context.allocation_callbacks(), &pool));
+  return pool;
+}
+
+CommandSlot create_command_slot(const Context& context, VkCommandPool pool) {
+  CommandSlot slot;
+  auto fci = init<VkFenceCreateInfo>(VK_STRUCTURE_TYPE_FENCE_CREATE_INFO);
+  fci.flags = VK_FENCE_CREATE_SIGNALED_BIT;
+  TVT_VK_CHECK(vkCreateFence(context.device(), &fci, context.allocation_callbacks(), &slot.fence));
+  auto cai = init<VkCommandBufferAllocateInfo>(VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO);
+  cai.commandPool = pool;
+  cai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+  cai.commandBufferCount = 1;
+  TVT_VK_CHECK(vkAllocateCommandBuffers(context.device(), &cai, &slot.cmd));
+  return slot;
+}
+
+}  // namespace tvt::vk
