@@ -8,6 +8,7 @@
 #include <utility>
 #include <vector>
 
+#include "api/client_producer.h"
 #include "compose/packed_scene.h"
 #include "compose/scene.h"
 #include "compose/scene_assets.h"
@@ -57,7 +58,7 @@ Result<std::unique_ptr<VirtualTexture>> VirtualTexture::create(const DeviceHandl
   if (!source) return invalid("VirtualTextureDesc::source: not a PageSource value");
   const auto method = tvt::method_from_string(desc.method);
   if (!method) return invalid("VirtualTextureDesc::method: unknown method '" + desc.method + "'");
-  if (desc.source != PageSource::composed && desc.store_file.empty())
+  if (desc.source != PageSource::composed && desc.store_file.empty() && !desc.producer)
     return invalid("VirtualTextureDesc::store_file: a stored or hybrid source needs a store");
   if (desc.consumer_stages == 0) return invalid("VirtualTextureDesc::consumer_stages: name at least one stage");
 
@@ -98,7 +99,9 @@ Result<std::unique_ptr<VirtualTexture>> VirtualTexture::create(const DeviceHandl
   o.window_pages = desc.window_pages;
   o.frames_in_flight = desc.frames_in_flight;
   o.source = *source;
-  if (desc.source != PageSource::composed) {
+  if (desc.producer) {
+    o.producer = std::make_shared<detail::ClientProducer>(desc.producer, desc.page_budget);
+  } else if (desc.source != PageSource::composed) {
     auto store = tvt::PageStoreReader::open(desc.store_file);
     if (!store) return Error{ErrorKind::io, store.error().message};
     o.store = std::move(store.value());
@@ -107,6 +110,23 @@ Result<std::unique_ptr<VirtualTexture>> VirtualTexture::create(const DeviceHandl
   auto vt = tvt::VtSystem::create(*impl->context, packed.value(), o);
   if (!vt) return invalid(vt.error().message);
   impl->vt = std::move(vt.value());
+  if (desc.producer) {
+    const tvt::VtConfig& c = impl->assets.desc.vt;
+    const tvt::vk::Image& cache = impl->vt->cache();
+    ProducerTarget t;
+    t.cache = cache.handle();
+    t.cache_view = cache.view();
+    t.format = cache.format();
+    t.slots = cache.layers();
+    t.slot_texels = c.slot_texels();
+    t.page_texels = c.page_texels;
+    t.border_texels = c.border_texels;
+    t.log2_size = c.log2_size;
+    t.mip_count = c.mip_count();
+    t.frames_in_flight = desc.frames_in_flight;
+    if (auto attached = desc.producer->attach(t); !attached)
+      return Error{attached.error().kind, "VirtualTextureDesc::producer: attach(): " + attached.error().message};
+  }
   return std::unique_ptr<VirtualTexture>(new VirtualTexture(std::move(impl)));
 }
 
@@ -195,10 +215,11 @@ Status VirtualTexture::record(VkCommandBuffer cmd) {
                                      VK_ACCESS_SHADER_READ_BIT);
   const tvt::VtFrameStats& vs = m.vt->stats();
   m.stats.produced = uint32_t(m.vt->last_completed().size());
-  m.stats.failed = vs.compose_failed + vs.missing + vs.stored.failed;
+  m.stats.failed = vs.produce_failed + vs.missing;
   m.stats.table_updates = vs.table_updates;
   m.stats.resident = vs.residency.resident;
-  if (!s) return Error{ErrorKind::producer_failed, s.error().message};
+  if (!s) return s.error().kind == ErrorKind::invalid_argument ? Error{ErrorKind::producer_failed, s.error().message}
+                                                                : s.error();
   return Ok{};
 }
 

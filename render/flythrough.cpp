@@ -128,7 +128,7 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
     }
     fr.vt = v.stats();
     fr.completed = v.last_completed();
-    if (v.stored()) fr.store_errors = v.stored()->take_error_messages();
+    fr.store_errors = v.producer().take_error_messages();
     fr.triangles = t.last_stats().triangles;
     fr.total_ms = ms_between(t0, std::chrono::steady_clock::now());
     fr.cpu_ms = fr.total_ms - fr.wait_ms;

@@ -38,14 +38,27 @@ Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, c
   c->job_buffer_ = context.create_buffer(sizeof(gpu::TvtPageJob) * slots * c->records_in_flight_,
                                          VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
   // The read-back buffer of compose_pages() is made on its first use: a VT cache never needs it.
-  const VkImageUsageFlags usage = VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT |
-                                  VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT;
-  if (auto fits = context.check_image_fits(VK_FORMAT_R8G8B8A8_UNORM, c->slot_texels_, c->slot_texels_, slots, usage,
-                                           "compose slots (one per cached page, vt.page_texels + 2 vt.border_texels "
-                                           "texels a side; use fewer slots or smaller pages)");
-      !fits)
-    return fits.error();
-  c->output_ = context.create_image(VK_FORMAT_R8G8B8A8_UNORM, c->slot_texels_, c->slot_texels_, slots, usage);
+  if (options.target) {
+    const vk::Image& t = *options.target;
+    if (t.format() != VK_FORMAT_R8G8B8A8_UNORM || t.width() != c->slot_texels_ || t.height() != c->slot_texels_ ||
+        t.layers() < slots)
+      return make_error("compose target: must be RGBA8 " + std::to_string(c->slot_texels_) + "^2 with at least " +
+                        std::to_string(slots) + " layers");
+    c->target_ = options.target;
+  } else {
+    const VkImageUsageFlags usage = VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT |
+                                    VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT;
+    if (auto fits = context.check_image_fits(VK_FORMAT_R8G8B8A8_UNORM, c->slot_texels_, c->slot_texels_, slots, usage,
+                                             "compose slots (one per cached page, vt.page_texels + 2 vt.border_texels "
+                                             "texels a side; use fewer slots or smaller pages)");
+        !fits)
+      return fits.error();
+    c->own_output_ = context.create_image(VK_FORMAT_R8G8B8A8_UNORM, c->slot_texels_, c->slot_texels_, slots, usage);
+    c->target_ = &c->own_output_;
+    context.run_commands([&](VkCommandBuffer cmd) {
+      vk::Context::transition(cmd, c->own_output_, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL);
+    });
+  }
 
   const vk::ComputeBinding bindings[] = {
       {TVT_BIND_COMPOSE_PARAMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}, {TVT_BIND_MATERIAL_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
@@ -59,10 +72,7 @@ Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, c
   c->descriptors_.write_buffer(TVT_BIND_META_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->materials_->meta());
   c->descriptors_.write_buffer(TVT_BIND_WEIGHTS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->materials_->weights());
   c->descriptors_.write_buffer(TVT_BIND_PAGE_JOBS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->job_buffer_);
-  c->descriptors_.write_storage_image(TVT_BIND_PAGE_OUTPUT, c->output_);
-  context.run_commands([&](VkCommandBuffer cmd) {
-    vk::Context::transition(cmd, c->output_, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL);
-  });
+  c->descriptors_.write_storage_image(TVT_BIND_PAGE_OUTPUT, *c->target_);
   return c;
 }
 
@@ -118,13 +128,13 @@ Result<std::vector<std::vector<uint8_t>>> GpuComposer::compose_pages(std::span<c
     context_->run_commands([&](VkCommandBuffer cmd) {
       recorded = record(cmd, jobs);
       if (!recorded) return;
-      vk::Context::transition(cmd, output_, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
+      vk::Context::transition(cmd, *target_, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
       VkBufferImageCopy region{};
       region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, uint32_t(count)};
       region.imageExtent = {slot_texels_, slot_texels_, 1};
-      vkCmdCopyImageToBuffer(cmd, output_.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, readback_buffer_.handle(), 1,
+      vkCmdCopyImageToBuffer(cmd, target_->handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, readback_buffer_.handle(), 1,
                              &region);
-      vk::Context::transition(cmd, output_, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL);
+      vk::Context::transition(cmd, *target_, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL);
     });
     if (!recorded) return recorded.error();
     const auto* src = static_cast<const uint8_t*>(readback_buffer_.mapped());

@@ -35,6 +35,10 @@ struct GpuComposerOptions {
   // record() calls whose commands may still run when the next call comes (frames in flight):
   // each owns its part of the job buffer and its material staging.
   uint32_t records_in_flight = 1;
+  // Set: compose into this image (RGBA8, (P+2B)^2, at least `slots` layers, layout GENERAL,
+  // STORAGE usage; e.g. the VT's cache, owned by the caller and outliving the composer)
+  // instead of an image of its own.
+  vk::Image* target = nullptr;
 };
 
 class GpuComposer {
@@ -85,8 +89,8 @@ class GpuComposer {
   // record()). For per-frame statistics.
   const MaterialUploadStats& upload_stats() const { return materials_->stats(); }
 
-  vk::Image& output() { return output_; }
-  const vk::Image& output() const { return output_; }
+  vk::Image& output() { return *target_; }
+  const vk::Image& output() const { return *target_; }
   uint32_t slots() const { return slots_; }
   uint32_t slot_texels() const { return slot_texels_; }
 
@@ -104,7 +108,8 @@ class GpuComposer {
   // The const buffer accessors complete the lazy upload through it (a cache, not state).
   std::unique_ptr<MaterialUploader> materials_;
   vk::Buffer params_buffer_, job_buffer_, readback_buffer_;
-  vk::Image output_;
+  vk::Image own_output_;            // unless GpuComposerOptions::target
+  vk::Image* target_ = nullptr;     // what compose.comp writes
   vk::ComputePipeline pipeline_;
   vk::DescriptorSet descriptors_;
 };

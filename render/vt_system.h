@@ -1,12 +1,8 @@
-// The virtual texture on the GPU: residency policy (vt/), producers (GpuComposer composing
-// into the physical cache; StoredProducer streaming baked pages into it), page table (device
-// buffer updated by a GPU scatter) and the state a sampling pass binds (TvtVtInfo, entries,
-// cache image + sampler).
-//
-// Sources: procedural (every page composed), stored (every page read from a baked store; a
-// page the store lacks or that fails verification falls back to its nearest resident
-// ancestor), hybrid (stored where the store has a good page, composed elsewhere and instead
-// of a bad stored page).
+// The virtual texture on the GPU: residency policy (vt/), one page producer writing into the
+// physical cache (render/page_producer.h: terravt's composer, stored pages or their hybrid
+// from render/builtin_producers.h, or a client's plug-in), page table (device buffer updated by
+// a GPU scatter) and the state a sampling pass binds (TvtVtInfo, entries, cache image + sampler).
+// The runtime does not know which producer it drives.
 //
 // Frame protocol (single queue). Up to frames_in_flight frames may be on the GPU at once: the
 // caller guarantees (gpu/frame_ring.h) that frame f - frames_in_flight has completed before
@@ -33,20 +29,17 @@
 #include <string_view>
 #include <unordered_set>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "compose/packed_scene.h"
-#include "render/gpu_composer.h"
-#include "render/stored_producer.h"
 #include "gpu/context.h"
+#include "render/builtin_producers.h"
+#include "render/page_producer.h"
 #include "shaders/shared/vt_types.h"
 #include "vt/residency.h"
 
 namespace tvt {
-
-enum class VtSource { procedural, stored, hybrid };
-std::string_view to_string(VtSource source);
-std::optional<VtSource> vt_source_from_string(std::string_view text);
 
 struct VtSystemOptions {
   uint32_t cache_slots = 256;          // physical cache pages ((P+2B)^2 RGBA8 each)
@@ -61,18 +54,9 @@ struct VtSystemOptions {
   bool sync_loads = false;             // wait for this frame's loads (comparisons, tests)
   uint64_t scene_hash = 0;             // checked against the store's (0: unchecked)
   uint32_t frames_in_flight = 2;       // frames the caller may have on the GPU at once (1 ... 8)
-};
-
-struct VtFrameStats {
-  ResidencyStats residency;
-  uint32_t composed = 0;               // pages composed this frame (incl. fallbacks)
-  uint32_t fallback_composed = 0;      // ... of which instead of a bad stored page (hybrid)
-  uint32_t missing = 0;                // requests the store could not serve (stored source)
-  uint32_t compose_failed = 0;         // pages not composed because a material failed to load
-  StoredFrameStats stored;             // loader activity (stored and hybrid sources)
-  MaterialUploadStats materials;       // lazy material upload (what this frame's pages needed first)
-  uint32_t table_updates = 0;          // entries scattered this frame
-  double select_ms = 0;                // CPU time spent choosing requests
+  // Set: makes every page instead of the built-in source above (source, store, loader and
+  // scene_hash are then unused; page_budget still caps the requests a frame).
+  std::shared_ptr<PageProducer> producer;
 };
 
 class VtSystem {
@@ -97,11 +81,10 @@ class VtSystem {
   const Residency& residency() const { return residency_; }
   const vk::Buffer& info_buffer() const { return info_buffer_; }
   const vk::Buffer& entry_buffer() const { return entry_buffer_; }
-  const vk::Image& cache() const { return composer_->output(); }
+  const vk::Image& cache() const { return *cache_; }
   VkSampler sampler() const { return sampler_; }
-  GpuComposer& composer() { return *composer_; }
-  StoredProducer* stored() { return stored_.get(); }
-  // Bytes of GPU memory: page table + info + cache.
+  PageProducer& producer() { return *producer_; }
+  // Bytes of GPU memory: page table + info + cache + what the producer holds besides.
   uint64_t gpu_bytes() const;
 
  private:
@@ -110,11 +93,11 @@ class VtSystem {
   VtConfig vt_;
   VtSystemOptions options_;
   Residency residency_;
-  void collect_loads();
-  std::unique_ptr<GpuComposer> composer_;
-  std::unique_ptr<StoredProducer> stored_;
-  std::vector<PageRequest> landing_, load_failed_, load_cancelled_;
-  std::unordered_set<uint64_t> loading_;   // pages with a load outstanding
+  std::unique_ptr<vk::Image> cache_;          // the producers write into it: created first
+  std::shared_ptr<PageProducer> producer_;
+  ProducerOutcome outcome_;
+  std::unordered_set<uint64_t> outstanding_;  // accepted, not yet written, failed or cancelled
+  void take_outcome();
   vk::Buffer info_buffer_, entry_buffer_, update_buffer_;
   gpu::TvtVtInfo info_{};              // written into info_buffer_ by record()
   uint32_t update_capacity_ = 0;       // entries per ring part of update_buffer_
@@ -122,7 +105,6 @@ class VtSystem {
   vk::ComputePipeline scatter_;
   vk::DescriptorSet scatter_set_;
   VkSampler sampler_ = VK_NULL_HANDLE;
-  std::vector<PageJob> jobs_;
   std::vector<PageId> completed_;
   std::vector<PageTableUpdate> pending_updates_;
   VtFrameStats stats_;

@@ -4,5 +4,6 @@
 #include "terravt/coords.h"
 #include "terravt/device.h"
 #include "terravt/error.h"
+#include "terravt/page_producer.h"
 #include "terravt/version.h"
 #include "terravt/virtual_texture.h"

@@ -30,12 +30,14 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <vector>
 #include <span>
 #include <string>
 
 #include "terravt/device.h"
 #include "terravt/error.h"
 #include "terravt/export.h"
+#include "terravt/page_producer.h"
 
 namespace terravt {
 
@@ -50,6 +52,9 @@ struct VirtualTextureDesc {
   std::string method = "fbpb+dpt2";  // transition method: linear, blendmap, fbpb, dpt1, dpt2, fbpb+dpt2
   PageSource source = PageSource::composed;
   std::string store_file;            // the baked store, for stored and hybrid
+  // Set: this producer makes every page instead of `source` (terravt/page_producer.h); the
+  // scene still gives the VT's geometry. Shared: the client may keep it to drive or inspect.
+  std::shared_ptr<PageProducer> producer;
   uint32_t cache_slots = 256;        // pages the physical cache holds
   uint32_t page_budget = 32;         // pages composed per frame at most
   uint32_t window_pages = 64;        // page-table window per mip, entries per side

@@ -1,0 +1,68 @@
+#include "api/client_producer.h"
+
+namespace terravt {
+
+PageProducer::~PageProducer() = default;
+
+namespace detail {
+namespace {
+
+PageTask task_of(const tvt::PageId& page, uint32_t slot) { return PageTask{page.mip, page.x, page.y, slot}; }
+
+std::string describe(const PageTask& t) {
+  return "mip " + std::to_string(t.mip) + " page (" + std::to_string(t.x) + ", " + std::to_string(t.y) + ") slot " +
+         std::to_string(t.slot);
+}
+
+}  // namespace
+
+tvt::ProducerAccept ClientProducer::request(const tvt::PageRequest& r) {
+  switch (client_->request(task_of(r.page, r.slot))) {
+    case ProducerAccept::accepted:
+      outstanding_[r.page.pack()] = r.slot;
+      return tvt::ProducerAccept::accepted;
+    case ProducerAccept::unavailable: return tvt::ProducerAccept::unavailable;
+    case ProducerAccept::busy: break;
+  }
+  return tvt::ProducerAccept::busy;  // also for a value outside the enum: asked again later
+}
+
+void ClientProducer::cancel(const tvt::PageId& page) {
+  const auto it = outstanding_.find(page.pack());
+  if (it == outstanding_.end()) return;
+  client_->cancel(task_of(page, it->second));
+  cancelled_.push_back(tvt::PageRequest{page, it->second});
+  outstanding_.erase(it);
+}
+
+tvt::Status ClientProducer::record(VkCommandBuffer cmd, tvt::ProducerOutcome& out) {
+  out.cancelled.insert(out.cancelled.end(), cancelled_.begin(), cancelled_.end());
+  cancelled_.clear();
+  written_.clear();
+  failed_.clear();
+  Status s = client_->record(cmd, written_, failed_);
+  std::string contract;  // the first report that breaks the contract
+  const auto take = [&](const std::vector<PageTask>& tasks, std::vector<tvt::PageRequest>& to) {
+    for (const PageTask& t : tasks) {
+      const tvt::PageId page{t.mip, t.x, t.y};
+      const auto it = outstanding_.find(page.pack());
+      if (it == outstanding_.end() || it->second != t.slot) {
+        if (contract.empty()) contract = describe(t) + " is not a page it accepted and still owns";
+        continue;
+      }
+      to.push_back(tvt::PageRequest{page, t.slot});
+      outstanding_.erase(it);
+    }
+  };
+  const size_t written_before = out.written.size();
+  take(written_, out.written);
+  take(failed_, out.failed);
+  written_count_ = uint32_t(out.written.size() - written_before);
+  if (!s) return Error{ErrorKind::producer_failed, "page producer: " + s.error().message};
+  if (!contract.empty())
+    return Error{ErrorKind::misuse, "page producer: record() reported " + contract + " (ignored)"};
+  return Ok{};
+}
+
+}  // namespace detail
+}  // namespace terravt
