@@ -14,6 +14,7 @@
 #include "compose/scene_assets.h"
 #include "compose/scene_identity.h"
 #include "gpu/context.h"
+#include "render/feedback_compactor.h"
 #include "render/vt_system.h"
 #include "streaming/page_store.h"
 
@@ -46,6 +47,12 @@ struct VirtualTexture::Impl {
   bool recorded = true;  // record() followed the last begin_frame()
   FrameStats stats;
   VkMemoryBarrier2 before{}, after{};  // what dependencies() points at
+  std::unique_ptr<tvt::FeedbackCompactor> compactor;  // desc.feedback_texels > 0
+  // (frame, compaction number) of compactions not yet read. The compactor's ring is indexed by
+  // compaction number, consecutive even when frame numbers skip.
+  std::deque<std::pair<uint64_t, uint64_t>> compacted;
+  uint64_t compactions = 0;
+  bool feedback_recorded = false;      // record_feedback() ran for the last frame begun
   VirtualTextureDependencies dependencies;
 };
 
@@ -110,6 +117,19 @@ Result<std::unique_ptr<VirtualTexture>> VirtualTexture::create(const DeviceHandl
   auto vt = tvt::VtSystem::create(*impl->context, packed.value(), o);
   if (!vt) return invalid(vt.error().message);
   impl->vt = std::move(vt.value());
+  if (desc.feedback_texels > 0) {
+    tvt::FeedbackCompactor::Options fo;
+    fo.feedback_width = desc.feedback_texels;
+    fo.feedback_height = 1;
+    // Compaction c's slot is next written by compaction c + ring_size: the frame that records
+    // it was begun with at most frames_in_flight - 1 others open, so c's frame had completed
+    // and its begin_frame() read c.
+    fo.ring_size = desc.frames_in_flight + 1;
+    auto compactor = tvt::FeedbackCompactor::create(*impl->context, fo);
+    if (!compactor)
+      return invalid("VirtualTextureDesc::feedback_texels: " + compactor.error().message);
+    impl->compactor = std::move(compactor.value());
+  }
   if (desc.producer) {
     const tvt::VtConfig& c = impl->assets.desc.vt;
     const tvt::vk::Image& cache = impl->vt->cache();
@@ -186,7 +206,22 @@ Status VirtualTexture::begin_frame(uint64_t frame, std::optional<uint64_t> compl
   const auto clamp_texel = [&](int64_t v) {
     return uint32_t(std::clamp<int64_t>(v, 0, int64_t(c.size_texels() - 1)));
   };
+  // The newest completed frame's GPU feedback joins the requests; older ones are stale.
+  m.stats.feedback_pages = 0;
+  std::optional<tvt::FeedbackResult> gpu;
+  uint64_t gpu_frame = 0;
+  while (done && !m.compacted.empty() && m.compacted.front().first <= *done) {
+    gpu = m.compactor->try_read(m.compacted.front().second, true);
+    gpu_frame = m.compacted.front().first;
+    m.compacted.pop_front();
+  }
+  if (gpu) {
+    for (const auto& [page, count] : gpu->pages) m.feedback.push_back(tvt::PageFeedback{page, count});
+    m.stats.feedback_pages = uint32_t(gpu->pages.size());
+    m.stats.feedback_frame = gpu_frame;
+  }
   m.vt->begin_frame(frame, clamp_texel(camera_texel_x), clamp_texel(camera_texel_y), m.feedback);
+  m.feedback_recorded = false;
   if (done) while (!m.in_flight.empty() && m.in_flight.front() <= *done) m.in_flight.pop_front();
   m.in_flight.push_back(frame);
   m.last_begun = frame;
@@ -220,6 +255,21 @@ Status VirtualTexture::record(VkCommandBuffer cmd) {
   m.stats.resident = vs.residency.resident;
   if (!s) return s.error().kind == ErrorKind::invalid_argument ? Error{ErrorKind::producer_failed, s.error().message}
                                                                 : s.error();
+  return Ok{};
+}
+
+Status VirtualTexture::record_feedback(VkCommandBuffer cmd, VkBuffer feedback, VkDeviceSize offset) {
+  Impl& m = *impl_;
+  if (!m.compactor) return misuse("record_feedback(): VirtualTextureDesc::feedback_texels was 0 at create()");
+  if (!m.last_begun) return misuse("record_feedback(): no frame begun (call begin_frame() first)");
+  if (m.feedback_recorded)
+    return misuse("record_feedback(): frame " + std::to_string(*m.last_begun) + "'s feedback was recorded already");
+  if (cmd == VK_NULL_HANDLE || feedback == VK_NULL_HANDLE)
+    return invalid(std::string("record_feedback(): ") + (cmd == VK_NULL_HANDLE ? "cmd" : "feedback") +
+                   " is VK_NULL_HANDLE");
+  m.compactor->record_unfenced(cmd, feedback, offset, m.compactions);
+  m.compacted.emplace_back(*m.last_begun, m.compactions++);
+  m.feedback_recorded = true;
   return Ok{};
 }
 

@@ -205,9 +205,13 @@ GraphicsPipeline Context::create_graphics_pipeline(const GraphicsPipelineDesc& d
 }
 
 void DescriptorSet::write_buffer(uint32_t binding, VkDescriptorType type, const Buffer& buffer) {
-  TVT_CHECK(set_ != VK_NULL_HANDLE && buffer.handle() != VK_NULL_HANDLE);
+  write_buffer(binding, type, buffer.handle(), 0);
+}
+
+void DescriptorSet::write_buffer(uint32_t binding, VkDescriptorType type, VkBuffer buffer, VkDeviceSize offset) {
+  TVT_CHECK(set_ != VK_NULL_HANDLE && buffer != VK_NULL_HANDLE);
   TVT_CHECK(type == VK_DESCRIPTOR_TYPE_STORAGE_BUFFER || type == VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER);
-  const VkDescriptorBufferInfo info{buffer.handle(), 0, VK_WHOLE_SIZE};
+  const VkDescriptorBufferInfo info{buffer, offset, VK_WHOLE_SIZE};
   auto w = init<VkWriteDescriptorSet>(VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET);
   w.dstSet = set_;
   w.dstBinding = binding;

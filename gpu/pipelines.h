@@ -104,6 +104,8 @@ class DescriptorSet {
   VkDescriptorSet handle() const { return set_; }
   // type: VK_DESCRIPTOR_TYPE_STORAGE_BUFFER or VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER; whole buffer.
   void write_buffer(uint32_t binding, VkDescriptorType type, const Buffer& buffer);
+  // A buffer terravt does not own (a client's), from `offset` to its end.
+  void write_buffer(uint32_t binding, VkDescriptorType type, VkBuffer buffer, VkDeviceSize offset);
   void write_storage_image(uint32_t binding, const Image& image);  // layout GENERAL
   // A combined image sampler over the image's default view, read in `layout`.
   void write_sampled_image(uint32_t binding, const Image& image, VkSampler sampler, VkImageLayout layout);

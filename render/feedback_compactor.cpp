@@ -117,9 +117,21 @@ VkFence FeedbackCompactor::record(VkCommandBuffer cmd, const vk::Buffer& feedbac
   if (vkGetFenceStatus(context_->device(), s.fence) != VK_SUCCESS) return VK_NULL_HANDLE;
   next_frame_ = frame + 1;
   TVT_VK_CHECK(vkResetFences(context_->device(), 1, &s.fence));
+  record_slot(s, cmd, feedback.handle(), 0, frame);
+  return s.fence;
+}
+
+void FeedbackCompactor::record_unfenced(VkCommandBuffer cmd, VkBuffer feedback, VkDeviceSize offset, uint64_t frame) {
+  TVT_CHECK(frame >= next_frame_);
+  next_frame_ = frame + 1;
+  record_slot(slots_[frame % slots_.size()], cmd, feedback, offset, frame);
+}
+
+void FeedbackCompactor::record_slot(Slot& s, VkCommandBuffer cmd, VkBuffer feedback, VkDeviceSize offset,
+                                    uint64_t frame) {
   s.has_frame = true;
   s.frame = frame;
-  s.insert_set.write_buffer(TVT_BIND_FEEDBACK_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, feedback);
+  s.insert_set.write_buffer(TVT_BIND_FEEDBACK_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, feedback, offset);
 
   const gpu::TvtFeedbackPush push{texel_count(), options_.table_capacity, options_.max_probes, 0u};
   // Earlier writes of the feedback (any pass, this or an earlier submission) and the previous
@@ -150,7 +162,6 @@ VkFence FeedbackCompactor::record(VkCommandBuffer cmd, const vk::Buffer& feedbac
 
   memory_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT, VK_PIPELINE_STAGE_HOST_BIT,
                  VK_ACCESS_HOST_READ_BIT);
-  return s.fence;
 }
 
 bool FeedbackCompactor::submit(const vk::Buffer& feedback, uint64_t frame) {

@@ -54,6 +54,13 @@ class FeedbackCompactor {
   // Frames must increase from call to call.
   VkFence record(VkCommandBuffer cmd, const vk::Buffer& feedback, uint64_t frame);
 
+  // record() for a caller that knows, from its own frame protocol, that the commands of frame
+  // `frame - ring_size` (the last user of this frame's ring slot) have completed: no fence is
+  // used (the caller's fences cover the slot) and the result is read with
+  // try_read(frame, true). `feedback` may be a buffer terravt does not own (STORAGE_BUFFER
+  // usage, >= feedback_bytes() from `offset`).
+  void record_unfenced(VkCommandBuffer cmd, VkBuffer feedback, VkDeviceSize offset, uint64_t frame);
+
   // record() into the compactor's own command buffer for the slot, submitted on the context's
   // queue. False when the ring slot is still in flight (nothing submitted). Never waits.
   bool submit(const vk::Buffer& feedback, uint64_t frame);
@@ -79,6 +86,7 @@ class FeedbackCompactor {
   struct Slot;
   explicit FeedbackCompactor(vk::Context& context);  // out of line: Slot is incomplete here
   FeedbackResult parse(const Slot& slot) const;
+  void record_slot(Slot& slot, VkCommandBuffer cmd, VkBuffer feedback, VkDeviceSize offset, uint64_t frame);
 
   vk::Context* context_;
   Options options_;

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "gpu/context.h"
+#include "shared/feedback_types.h"
 #include "shared/page_table_entry.h"
 #include "support/vt_client.h"
 #include "terravt/terravt.h"
@@ -361,6 +362,68 @@ TEST(PageProducer, AReportOfAPageItWasNotHandedIsMisuseAndIgnored) {
   EXPECT_EQ(run.records[0].error().kind, terravt::ErrorKind::misuse);
   EXPECT_NE(run.records[0].error().message.find("mip 0 page (1, 1) slot 0"), std::string::npos)
       << run.records[0].error().message;
+}
+
+TEST(PageProducer, FeedbackWrittenOnTheGpuIsCompactedThereAndAsksForItsPages) {
+  Client client(2);
+  ASSERT_TRUE(client.device);
+  auto producer = std::make_shared<CheckerProducer>(client.h.device);
+  terravt::VirtualTextureDesc d = producer_desc(producer);
+  d.feedback_texels = 256;
+  auto created = terravt::VirtualTexture::create(client.h, d);
+  ASSERT_TRUE(created.ok()) << created.error().message;
+  terravt::VirtualTexture& vt = **created;
+  const terravt::VirtualTextureInfo info = vt.info();
+  const int64_t centre = int64_t(1) << (info.log2_size - 1);
+  const uint32_t px = uint32_t(centre / info.page_texels);
+  // What the client's pass would have written with terravt_feedback(): 100 texels want the
+  // mip-0 page at the centre, 50 a mip-3 page elsewhere, the rest nothing.
+  const PageTask a{0, px, px, 0}, b{3, (px >> 3) + 1, px >> 3, 0};
+  auto ctx = vk::Context::adopt(client.h);
+  ASSERT_TRUE(ctx.ok()) << ctx.error().message;
+  vk::Buffer feedback = (*ctx)->create_buffer(256 * 8, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+  auto* words = static_cast<uint32_t*>(feedback.mapped());
+  for (uint32_t i = 0; i < 256; ++i) {
+    const PageTask* t = i < 100 ? &a : i < 150 ? &b : nullptr;
+    words[2 * i] = t ? gpu::tvt_feedback_word0(t->mip, t->x) : gpu::TVT_FEEDBACK_EMPTY_WORD;
+    words[2 * i + 1] = t ? gpu::tvt_feedback_word1(t->y) : gpu::TVT_FEEDBACK_EMPTY_WORD;
+  }
+
+  uint32_t most_feedback_pages = 0;
+  for (uint64_t f = 0; f < 10; ++f) {
+    VkCommandBuffer cmd = client.begin(f);
+    ASSERT_TRUE(vt.begin_frame(f, f >= 2 ? std::optional<uint64_t>(f - 2) : std::nullopt, centre, centre, {}).ok());
+    most_feedback_pages = std::max(most_feedback_pages, vt.stats().feedback_pages);
+    if (f >= 2) {
+      EXPECT_EQ(vt.stats().feedback_frame, f - 2);  // the newest completed frame's feedback
+    }
+    ASSERT_TRUE(vt.record(cmd).ok());
+    const terravt::Status fed = vt.record_feedback(cmd, feedback.handle());
+    ASSERT_TRUE(fed.ok()) << fed.error().message;
+    const terravt::Status twice = vt.record_feedback(cmd, feedback.handle());
+    ASSERT_FALSE(twice.ok());
+    EXPECT_EQ(twice.error().kind, terravt::ErrorKind::misuse);
+    client.submit(f);
+  }
+  vkDeviceWaitIdle(client.h.device);
+  EXPECT_EQ(most_feedback_pages, 2u);
+  for (const PageTask& want : {a, b}) {
+    const bool made = std::any_of(producer->in_slot.begin(), producer->in_slot.end(), [&](const auto& s) {
+      return s.second.mip == want.mip && s.second.x == want.x && s.second.y == want.y;
+    });
+    EXPECT_TRUE(made) << "mip " << want.mip << " page " << want.x << ", " << want.y << " asked for by GPU feedback";
+  }
+}
+
+TEST(PageProducer, GpuFeedbackNeedsFeedbackTexelsAtCreate) {
+  Client client(2);
+  ASSERT_TRUE(client.device);
+  auto created = terravt::VirtualTexture::create(client.h, producer_desc(std::make_shared<CheckerProducer>(client.h.device)));
+  ASSERT_TRUE(created.ok()) << created.error().message;
+  const terravt::Status s = (*created)->record_feedback(VK_NULL_HANDLE, VK_NULL_HANDLE);
+  ASSERT_FALSE(s.ok());
+  EXPECT_EQ(s.error().kind, terravt::ErrorKind::misuse);
+  EXPECT_NE(s.error().message.find("feedback_texels"), std::string::npos) << s.error().message;
 }
 
 }  // namespace

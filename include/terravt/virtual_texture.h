@@ -59,6 +59,10 @@ struct VirtualTextureDesc {
   uint32_t page_budget = 32;         // pages composed per frame at most
   uint32_t window_pages = 64;        // page-table window per mip, entries per side
   uint32_t frames_in_flight = 2;     // 1 ... 8
+  // > 0: record_feedback() compacts, on the GPU, a client buffer of this many feedback texels
+  // (two uint32 words each, written with terravt_feedback() by the client's pass); 0: page
+  // requests come only as the CPU list given to begin_frame().
+  uint32_t feedback_texels = 0;
   // Stages of the client's passes that read the VT (fragment by default; vertex or compute too).
   VkPipelineStageFlags consumer_stages = VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT;
   // true: record() records the barriers between the client's consumer stages and its own work.
@@ -106,6 +110,8 @@ struct FrameStats {
   uint32_t failed = 0;         // pages that could not be produced (their ancestors stand in)
   uint32_t table_updates = 0;  // page-table entries rewritten
   uint32_t resident = 0;       // pages in the cache after this frame
+  uint32_t feedback_pages = 0; // distinct pages from GPU feedback that joined this frame's requests
+  uint64_t feedback_frame = 0; // ... compacted in this frame (valid when feedback_pages > 0)
 };
 
 class TERRAVT_API VirtualTexture {
@@ -128,6 +134,14 @@ class TERRAVT_API VirtualTexture {
   // of the queue family given at create()). A page whose material cannot be loaded fails
   // (ErrorKind::producer_failed, naming the file); the frame is still complete and usable.
   Status record(VkCommandBuffer cmd);
+  // Records into `cmd` the GPU compaction of the client's feedback buffer (STORAGE_BUFFER usage,
+  // desc.feedback_texels texels of 8 bytes from `offset`, cleared to 0xffffffff and written by
+  // the client's pass earlier in `cmd` or in an earlier submission on the same queue; terravt
+  // places the barrier after those writes). At most once per frame, after begin_frame() (before
+  // or after record()). Its distinct pages, each weighted by the texels that asked for it, join
+  // the requests of the first begin_frame() whose `completed` frame is this one or newer; a
+  // newer completed frame's feedback replaces an older one's.
+  Status record_feedback(VkCommandBuffer cmd, VkBuffer feedback, VkDeviceSize offset = 0);
   const FrameStats& stats() const;
 
  private:
