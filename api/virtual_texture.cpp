@@ -53,6 +53,13 @@ struct VirtualTexture::Impl {
   std::deque<std::pair<uint64_t, uint64_t>> compacted;
   uint64_t compactions = 0;
   bool feedback_recorded = false;      // record_feedback() ran for the last frame begun
+  std::optional<uint64_t> setup_frame;  // the frame that recorded the set-up; its staging lives until it completed
+  // The set-up create() deferred goes first into whichever command buffer comes first.
+  void record_setup(VkCommandBuffer cmd) {
+    if (!context->has_deferred_setup()) return;
+    context->record_deferred_setup(cmd);
+    setup_frame = last_begun;
+  }
   VirtualTextureDependencies dependencies;
 };
 
@@ -90,6 +97,8 @@ Result<std::unique_ptr<VirtualTexture>> VirtualTexture::create(const DeviceHandl
   auto context = tvt::vk::Context::adopt(device);
   if (!context) return context.error();  // check_device()'s kind: invalid_argument or unsupported_device
   impl->context = std::move(context.value());
+  // Nothing is submitted on the client's queue: set-up is recorded by the first record().
+  impl->context->defer_setup();
 
   auto scene = desc.scene_file.empty() ? tvt::Result<tvt::SceneDesc>(tvt::default_scene())
                                        : tvt::load_scene_file(desc.scene_file);
@@ -220,6 +229,10 @@ Status VirtualTexture::begin_frame(uint64_t frame, std::optional<uint64_t> compl
     m.stats.feedback_pages = uint32_t(gpu->pages.size());
     m.stats.feedback_frame = gpu_frame;
   }
+  if (m.setup_frame && done && *done >= *m.setup_frame) {
+    m.context->release_deferred_staging();
+    m.setup_frame.reset();
+  }
   m.vt->begin_frame(frame, clamp_texel(camera_texel_x), clamp_texel(camera_texel_y), m.feedback);
   m.feedback_recorded = false;
   if (done) while (!m.in_flight.empty() && m.in_flight.front() <= *done) m.in_flight.pop_front();
@@ -236,6 +249,7 @@ Status VirtualTexture::record(VkCommandBuffer cmd) {
     return misuse(m.last_begun ? "record(): frame " + std::to_string(*m.last_begun) + " was recorded already"
                                : std::string("record(): no frame begun (call begin_frame() first)"));
   if (cmd == VK_NULL_HANDLE) return invalid("record(): cmd is VK_NULL_HANDLE");
+  m.record_setup(cmd);
   // Earlier frames' reads by the client's stages end before this frame rewrites what they read.
   if (m.desc.record_barriers)
     vkCmdPipelineBarrier(cmd, m.desc.consumer_stages, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
@@ -267,6 +281,7 @@ Status VirtualTexture::record_feedback(VkCommandBuffer cmd, VkBuffer feedback, V
   if (cmd == VK_NULL_HANDLE || feedback == VK_NULL_HANDLE)
     return invalid(std::string("record_feedback(): ") + (cmd == VK_NULL_HANDLE ? "cmd" : "feedback") +
                    " is VK_NULL_HANDLE");
+  m.record_setup(cmd);
   m.compactor->record_unfenced(cmd, feedback, offset, m.compactions);
   m.compacted.emplace_back(*m.last_begun, m.compactions++);
   m.feedback_recorded = true;

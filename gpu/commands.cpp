@@ -12,6 +12,10 @@ constexpr VkDeviceSize kStagingChunkBytes = VkDeviceSize(16) << 20;  // upload()
 }  // namespace
 
 void Context::run_commands(const std::function<void(VkCommandBuffer)>& record) {
+  if (deferring_) {
+    deferred_.push_back(record);
+    return;
+  }
   auto ai = init<VkCommandBufferAllocateInfo>(VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO);
   ai.commandPool = command_pool_;
   ai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
@@ -40,10 +44,29 @@ void Context::run_commands(const std::function<void(VkCommandBuffer)>& record) {
   vkFreeCommandBuffers(device_, command_pool_, 1, &cmd);
 }
 
+void Context::record_deferred_setup(VkCommandBuffer cmd) {
+  if (deferred_.empty()) return;
+  for (const auto& record : deferred_) record(cmd);
+  deferred_.clear();
+  memory_barrier(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, VK_ACCESS_MEMORY_WRITE_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
+                 VK_ACCESS_MEMORY_READ_BIT | VK_ACCESS_MEMORY_WRITE_BIT);
+}
+
 void Context::upload(const Buffer& dst, const void* data, VkDeviceSize bytes, VkDeviceSize dst_offset) {
   if (bytes == 0) return;
   TVT_CHECK(dst.handle() != VK_NULL_HANDLE && data != nullptr);
   TVT_CHECK(dst_offset <= dst.size() && bytes <= dst.size() - dst_offset);
+  if (deferring_) {
+    // One staging buffer for the whole upload, kept until the client's command buffer ran.
+    deferred_staging_.push_back(create_buffer(bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true));
+    std::memcpy(deferred_staging_.back().mapped(), data, size_t(bytes));
+    const VkBuffer src = deferred_staging_.back().handle(), to = dst.handle();
+    deferred_.push_back([src, to, bytes, dst_offset](VkCommandBuffer cmd) {
+      const VkBufferCopy region{0, dst_offset, bytes};
+      vkCmdCopyBuffer(cmd, src, to, 1, &region);
+    });
+    return;
+  }
   const VkDeviceSize chunk = std::min(bytes, kStagingChunkBytes);
   Buffer staging = create_buffer(chunk, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true);
   const auto* src = static_cast<const unsigned char*>(data);

@@ -122,7 +122,20 @@ class Context {
 
   // Records with `record` into a one-time command buffer, submits, waits for completion.
   // For set-up, uploads and tests; frame loops use their own command buffers and fences.
+  // While set-up is deferred (below), `record` is kept and recorded later instead: it must then
+  // capture nothing by reference that dies before record_deferred_setup().
   void run_commands(const std::function<void(VkCommandBuffer)>& record);
+
+  // Set-up in the client's command buffer (a client never has terravt submit on its queue):
+  // from defer_setup() on, run_commands() and upload() submit nothing; upload() copies its
+  // bytes into a staging buffer at once and both queue their commands, which
+  // record_deferred_setup(cmd) records in order into `cmd`, ending with a barrier that makes
+  // them visible to every later command. The staging lives until release_deferred_staging()
+  // (call it once the GPU has finished `cmd`).
+  void defer_setup() { deferring_ = true; }
+  bool has_deferred_setup() const { return !deferred_.empty(); }
+  void record_deferred_setup(VkCommandBuffer cmd);
+  void release_deferred_staging() { deferred_staging_.clear(); }
   // Uploads bytes into a (device-local) buffer through a staging buffer.
   void upload(const Buffer& dst, const void* data, VkDeviceSize bytes, VkDeviceSize dst_offset = 0);
 
@@ -150,6 +163,9 @@ class Context {
   const VkAllocationCallbacks* alloc_ = nullptr;
   terravt::LogCallback log_;
   VkCommandPool command_pool_ = VK_NULL_HANDLE;
+  bool deferring_ = false;
+  std::vector<std::function<void(VkCommandBuffer)>> deferred_;
+  std::vector<Buffer> deferred_staging_;
   VkPhysicalDeviceProperties properties_{};
   VkPhysicalDeviceMemoryProperties memory_properties_{};
   VkDeviceSize max_allocation_bytes_ = 0;  // VkPhysicalDeviceVulkan11Properties::maxMemoryAllocationSize

@@ -40,8 +40,9 @@ Result<std::unique_ptr<VtSystem>> VtSystem::create(vk::Context& context, const P
     return fits.error();
   auto cache = std::make_unique<vk::Image>(
       context.create_image(VK_FORMAT_R8G8B8A8_UNORM, vt.slot_texels(), vt.slot_texels(), options.cache_slots, usage));
-  context.run_commands([&](VkCommandBuffer cmd) {
-    vk::Context::transition(cmd, *cache, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL);
+  // By value: with deferred set-up (gpu/context.h) this runs after create() returned.
+  context.run_commands([image = cache.get()](VkCommandBuffer cmd) {
+    vk::Context::transition(cmd, *image, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL);
   });
   std::shared_ptr<PageProducer> producer = options.producer;
   if (!producer) {

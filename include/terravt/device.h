@@ -38,8 +38,9 @@ struct DeviceHandles {
   // The family of the queue whose command buffers terravt records into: it needs COMPUTE
   // (page composition, page-table scatter, feedback compaction) and transfer (uploads).
   uint32_t queue_family = 0;
-  // A queue of that family. Set-up uploads (pinned pages, tables) are submitted on it today;
-  // the client serialises terravt's use of it with its own (Vulkan external synchronisation).
+  // A queue of that family. terravt::VirtualTexture never submits on it (its set-up is recorded
+  // into the client's first frame); terravt's own tools submit one-shot work on it, which the
+  // client would serialise with its own use (Vulkan external synchronisation).
   VkQueue queue = VK_NULL_HANDLE;
   // The entry point every terravt Vulkan call is looked up through (required).
   PFN_vkGetInstanceProcAddr get_instance_proc_addr = nullptr;

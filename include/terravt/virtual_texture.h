@@ -20,7 +20,9 @@
 // and description by earlier frames' `consumer_stages`, then writes them with compute and
 // transfer commands, then makes the writes visible to `consumer_stages` of the commands
 // recorded after it in the same queue. The cache stays in VK_IMAGE_LAYOUT_GENERAL.
-// Set-up (create()) uploads the initial page table on DeviceHandles::queue and waits for it.
+// Set-up: create() submits nothing and waits for nothing; its uploads (the initial page table,
+// the description) and layout transitions are recorded at the start of the first record() (or
+// record_feedback()), so the bindings hold defined data from that frame's commands on.
 //
 // Threading: one thread calls a VirtualTexture at a time. Destroy it only once the GPU has
 // finished every command buffer it recorded into.
