@@ -145,6 +145,7 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
       views.atlas = [&g, &v] { return cache_atlas_image(g, v.cache(), 32, 2); };
       views.page_table = [&v] { return page_table_image(v.residency().page_table()); };
       views.feedback = [&g, &t] { return feedback_image(g, t.feedback_buffer(), t.feedback_width(), t.feedback_height()); };
+      views.page_table_bytes = [&g, &v] { return page_table_bytes(g, v.entry_buffer()); };
       if (!on_frame(fr, views)) break;
     }
   }

@@ -88,6 +88,10 @@ struct FlythroughViews {
   std::function<ImageRGBA8()> atlas;       // every cache slot (vt_debug.h)
   std::function<ImageRGBA8()> page_table;  // every mip window, coloured by data mip
   std::function<ImageRGBA8()> feedback;    // this frame's feedback texels, coloured by mip
+  // The GPU page table after this frame, read back as it is bound (every mip's window, uint32
+  // entries of shared/page_table_entry.h, little-endian): what a client of the installed API
+  // reads from VirtualTextureBindings::table_buffer.
+  std::function<std::vector<uint8_t>()> page_table_bytes;
 };
 
 // Called after every frame. Returning false stops the loop early.

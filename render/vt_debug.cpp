@@ -92,4 +92,19 @@ ImageRGBA8 feedback_image(vk::Context& context, const vk::Buffer& feedback, uint
   return out;
 }
 
+std::vector<uint8_t> page_table_bytes(vk::Context& context, const vk::Buffer& entries) {
+  vk::Buffer host = context.create_buffer(entries.size(), VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
+  context.run_commands([&](VkCommandBuffer cmd) {
+    vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+                                VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                                VK_ACCESS_TRANSFER_READ_BIT);
+    const VkBufferCopy copy{0, 0, entries.size()};
+    vkCmdCopyBuffer(cmd, entries.handle(), host.handle(), 1, &copy);
+    vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_HOST_BIT,
+                                VK_ACCESS_HOST_READ_BIT);
+  });
+  const auto* p = static_cast<const uint8_t*>(host.mapped());
+  return std::vector<uint8_t>(p, p + entries.size());
+}
+
 }  // namespace tvt

@@ -2,6 +2,7 @@
 // (Mip-level colouring of the frame itself is VtSystem::set_debug_view(TVT_VT_VIEW_DATA_MIP).)
 #pragma once
 #include <cstdint>
+#include <vector>
 
 #include "compose/image.h"
 #include "gpu/context.h"
@@ -19,5 +20,10 @@ ImageRGBA8 page_table_image(const PageTable& table);
 
 // The feedback buffer (feedback_types.h texels), coloured by requested mip; empty texels black.
 ImageRGBA8 feedback_image(vk::Context& context, const vk::Buffer& feedback, uint32_t width, uint32_t height);
+
+// The GPU page table (VtSystem::entry_buffer(), written by compute and transfer commands) as
+// bytes: uint32 entries, little-endian, every mip's window. Blocking readback after the
+// commands submitted so far.
+std::vector<uint8_t> page_table_bytes(vk::Context& context, const vk::Buffer& entries);
 
 }  // namespace tvt

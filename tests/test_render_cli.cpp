@@ -4,7 +4,9 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -125,6 +127,8 @@ TEST_F(RenderCli, BadFlagsExitWithTheirNameAndWriteNothing) {
       {"--camera " + path("missing-camera.json"), "missing-camera.json: cannot read camera file"},
       {"--camera " + path("bad-camera.json"), "bad-camera.json: /keys/0/yaw_deg: required field is missing"},
       {"--save-camera " + path("no/such/folder/cam.json"), "--save-camera"},
+      {"--lighting dim", "--lighting"},
+      {"--page-table " + path("bad.json"), "--page-table"},  // exists: replaced only with --overwrite
   };
   for (const auto& [args, field] : cases) {
     const int code = run("render --quiet --frames 2 --width 64 --height 36 --out " + out + " " + args);
@@ -145,6 +149,29 @@ std::vector<nlohmann::json> stats_lines(const std::string& out) {
 std::string file_text(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
   return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+// --lighting none renders the albedo alone, and --page-table writes the GPU page table after
+// the last frame: uint32 entries of every mip's window, the coarsest page mapped everywhere.
+TEST_F(RenderCli, LightingNoneChangesTheFrameAndThePageTableIsWrittenAfterTheLastFrame) {
+  // A still camera and every pixel reporting: each frame's feedback is the same, so both runs
+  // end with the same residency whichever frame their first feedback arrived in.
+  std::ofstream(path("still.json")) << R"({"keys": [{"time_s": 0, "position_m": [3000, 3000, 900], "yaw_deg": 20, "pitch_deg": -30}]})";
+  const std::string args = "render --quiet --frames 3 --every 2 --width 64 --height 36 --cache-slots 64 --method linear "
+                           "--feedback-divisor 1 --camera " + path("still.json") + " ";
+  ASSERT_EQ(run(args + "--out " + path("sun") + " --page-table " + path("sun.bin")), 0) << output_;
+  ASSERT_EQ(run(args + "--lighting none --out " + path("albedo") + " --page-table " + path("albedo.bin")), 0) << output_;
+  EXPECT_EQ(output_.find("vulkan"), std::string::npos) << output_;  // no validation message
+  const std::string table = file_text(path("albedo.bin"));
+  ASSERT_GT(table.size(), 0u);
+  ASSERT_EQ(table.size() % 4, 0u);
+  std::vector<uint32_t> entries(table.size() / 4);
+  std::memcpy(entries.data(), table.data(), table.size());
+  EXPECT_TRUE(std::all_of(entries.begin(), entries.end(), [](uint32_t e) { return (e & 0x80000000u) != 0; }))
+      << "an entry without data: the coarsest mip is always resident";
+  // The lighting does not change what is resident, only the frame.
+  EXPECT_EQ(file_text(path("sun.bin")), table);
+  EXPECT_NE(file_text(fs::path(path("sun")) / "frame_00002.png"), file_text(fs::path(path("albedo")) / "frame_00002.png"));
 }
 
 // An earlier run's output is never replaced or emptied without --overwrite: not by a second run,

@@ -42,6 +42,8 @@ struct RenderArgs {
   std::string vt_filter = "trilinear";
   uint32_t frames_in_flight = 2;
   double detail_relief = TerrainLighting{}.detail_relief_m;
+  std::string lighting = "sun";  // "none": the image is the albedo
+  std::string page_table;        // write the GPU page table after the last frame here
   uint32_t frames = 120;
   bool frames_given = false;  // else: 120 on the built-in flythrough, the whole --camera path
   uint32_t every = 10;
@@ -163,6 +165,7 @@ int run_render(const RenderArgs& a) {
   if (a.frames_in_flight < 1 || a.frames_in_flight > 8) return fail(cmd, "--frames-in-flight: must be between 1 and 8", 2);
   if (!(a.detail_relief >= 0.0 && a.detail_relief <= 1000.0))
     return fail(cmd, "--detail-relief: metres in [0, 1000], got " + std::to_string(a.detail_relief), 2);
+  if (a.lighting != "sun" && a.lighting != "none") return fail(cmd, "--lighting: sun or none, got '" + a.lighting + "'", 2);
   if (a.width < 16 || a.height < 16 || a.width > 8192 || a.height > 8192)
     return fail(cmd, "--width/--height: must be between 16 and 8192", 2);
   // At least one frame per 1000 s: path times stay finite and meaningful.
@@ -246,6 +249,8 @@ int run_render(const RenderArgs& a) {
   auto owned = OutputLock::acquire("--out", a.out);  // one run per folder: frames of two runs never mix
   if (!owned) return fail(cmd, owned.error().message, 2);
   if (auto s = check_output_folder(a.out, a.overwrite); !s) return fail(cmd, s.error().message, 2);
+  if (!a.page_table.empty())
+    if (auto s = check_output_file("--page-table", a.page_table, a.overwrite); !s) return fail(cmd, s.error().message, 2);
   auto ctx = gpu_context(a.gpu_name);
   if (!ctx) return fail(cmd, ctx.error().message, 1);
   vk::Context& g = *ctx.value();
@@ -278,6 +283,12 @@ int run_render(const RenderArgs& a) {
   fo.mip_filter = *mip_filter;
   fo.frames_in_flight = a.frames_in_flight;
   fo.lighting.detail_relief_m = a.detail_relief;
+  if (a.lighting == "none") {  // albedo * (0 * lambert + 1), no fog: the image is the albedo
+    fo.lighting.sun_intensity = 0.0;
+    fo.lighting.ambient = 1.0;
+    fo.lighting.fog_density_per_m = 0.0;
+    fo.lighting.detail_relief_m = 0.0;
+  }
   fo.debug_view = a.debug_mips ? 1 : 0;
   std::printf("terravt render: %s, V = 2^%u, %ux%u, %u frames, method %s, source %s, cache %u pages, budget %u/frame, "
               "%s filter, device %s\n",
@@ -286,6 +297,7 @@ int run_render(const RenderArgs& a) {
   std::printf("camera: %s\n", camera->describe().c_str());
   uint32_t written = 0;
   std::string write_error;
+  bool wrote_table = false;
   auto summary = run_flythrough(g, assets.value(), fo, [&](const FlythroughFrame& fr, const FlythroughViews& views) {
     const VtFrameStats& s = fr.vt;
     if (!run.is_open())
@@ -312,6 +324,14 @@ int run_render(const RenderArgs& a) {
           }
         }
       }
+    }
+    if (!a.page_table.empty() && fr.index + 1 == frames) {
+      const std::vector<uint8_t> table = views.page_table_bytes();
+      if (auto w = fileio::write_file_durable(a.page_table, table.data(), table.size()); !w) {
+        write_error = "--page-table: " + w.error().message;
+        return false;
+      }
+      wrote_table = true;
     }
     nlohmann::json j;
     j["frame"] = fr.index;
@@ -368,6 +388,8 @@ int run_render(const RenderArgs& a) {
     if (auto committed = run.stats.commit(); !committed) write_error = committed.error().message;
   if (!write_error.empty() || !summary) {
     run.take_back();
+    std::error_code ec;
+    if (wrote_table) std::filesystem::remove(a.page_table, ec);
     const std::string why = write_error.empty() ? summary.error().message : write_error;
     const bool started = !run.folder.empty();  // the folder was touched: say what is left of the run
     return fail(cmd, why + (started ? "; no frame or stats of this run is kept in " + a.out : std::string()),
@@ -397,7 +419,7 @@ const CommandRegistrar k_register{
           "--save-camera", a->save_camera, "Write the camera path (the built-in flythrough unless --camera) to this file and stop");
       app.add_flag("--overwrite", a->overwrite,
                    "Replace the output of an earlier run in --out (its frames, debug images and stats.jsonl; other files "
-                   "stay) and an existing --save-camera file");
+                   "stay) and an existing --save-camera or --page-table file");
       const CLI::Option* frames = app.add_option("--frames", a->frames,
                                                  "Frames to render (default: 120 on the built-in flythrough, the whole --camera path)");
       app.add_option("--every", a->every, "Write every k-th frame")->capture_default_str();
@@ -425,6 +447,13 @@ const CommandRegistrar k_register{
                      "lookup outside that band)")
           ->capture_default_str();
       app.add_option("--detail-relief", a->detail_relief, "Metres of material height relief for the detail normal (0: off)")->capture_default_str();
+      app.add_option("--lighting", a->lighting,
+                     "sun (Lambert sun + ambient, distance fog, detail normal) or none (the image is the albedo: for "
+                     "comparing with another renderer)")
+          ->capture_default_str();
+      app.add_option("--page-table", a->page_table,
+                     "After the last frame, write the GPU page table here (raw little-endian uint32 entries, every mip's "
+                     "window: what VirtualTextureBindings::table_buffer holds)");
       app.add_option("--frames-in-flight", a->frames_in_flight, "Frames recorded ahead of the GPU (1: wait for each frame)")->capture_default_str();
       app.add_flag("--sync-loads", a->sync_loads, "Wait for each frame's stored pages (frame-exact comparisons)");
       app.add_flag("--strict", a->strict,

@@ -6,11 +6,8 @@
 set -euo pipefail
 build=$1
 src=$2
-work=$(mktemp -d)
-trap 'rm -rf "$work"' EXIT
-prefix=$work/prefix
-
-cmake --install "$build" --prefix "$prefix" >/dev/null
+source "$src/tests/package/install_prefix.sh"
+tvt_install_prefix "$build"
 
 # Headers: C++ in include/terravt/*.h, GLSL in terravt/vt.glsl and terravt/glsl/; each C++
 # #include is a standard header, Vulkan, or terravt/.
@@ -71,8 +68,7 @@ leaked=$(nm -D --defined-only -C "$lib" | awk '$2 ~ /[TWBDRVu]/' |
 if [ -n "$leaked" ]; then echo "FAIL: libterravt exports non-API symbols:"; echo "$leaked" | head -20; exit 1; fi
 
 # find_package(terravt CONFIG)
-cmake -S "$src/tests/package" -B "$work/consumer" -DCMAKE_PREFIX_PATH="$prefix" >/dev/null
-cmake --build "$work/consumer" >/dev/null
+tvt_build_client "$src/tests/package" "$work/consumer"
 "$work/consumer/consumer"
 
 # pkg-config
