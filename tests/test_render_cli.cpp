@@ -115,7 +115,7 @@ TEST_F(RenderCli, BadFlagsExitWithTheirNameAndWriteNothing) {
       {"--camera ''", "--camera: empty path"},
       {"--save-camera ''", "--save-camera: empty path"},
       {"--gpu ''", "--gpu: empty"},
-      {"--scene " + path("huge-pages.json"), "compose slots"},
+      {"--scene " + path("huge-pages.json"), "vt cache (cache_slots pages of vt.page_texels"},
       {"--vt-filter nearest", "--vt-filter"},
       {"--vt-filter brilinear:", "--vt-filter"},
       {"--vt-filter brilinear:1.5", "--vt-filter"},
