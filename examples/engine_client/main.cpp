@@ -2,8 +2,9 @@
 // installed package only (docs/engine-integration.md, "The example client"). It makes its own
 // Vulkan device, its own render pass, mesh, descriptor layout and shaders; terravt records its
 // page production into the engine's command buffers, the engine's fragment shader samples with
-// terravt_sample() and writes requests with terravt_feedback(), and the engine turns the
-// read-back requests into terravt::PageRequest's. N frames offscreen; the last is saved as PNG.
+// terravt_sample() and writes requests with terravt_feedback() into a storage buffer, which
+// terravt compacts on the GPU (record_feedback(); --cpu-feedback: the engine reads it back and
+// turns it into terravt::PageRequest's). N frames offscreen; the last is saved as PNG.
 #include <terravt/terravt.h>
 
 #include <algorithm>
@@ -29,7 +30,7 @@ struct Args {
   uint32_t width = 640, height = 360, frames = 60;
   double x = 4096, y = 4096, z = 120, yaw_deg = 30, pitch_deg = -35, fov_deg = 60, near_m = 0.5, far_m = 100000;
   uint32_t feedback_divisor = 8, cache_slots = 512, page_budget = 48, window = 64, chunks = 16, quads = 32;
-  bool bench = false, validation = false;
+  bool bench = false, validation = false, cpu_feedback = false;
 };
 
 constexpr const char* kUsage = R"(usage: engine_client [options]
@@ -44,6 +45,8 @@ constexpr const char* kUsage = R"(usage: engine_client [options]
   --fov-deg D             vertical field of view (default 60)
   --near M --far M        clip planes (default 0.5, 100000)
   --feedback-divisor N    one page request per N x N pixels, a rotating pixel per frame (default 8)
+  --cpu-feedback          read the feedback back on the CPU and pass it to begin_frame() as
+                          terravt::PageRequest's, instead of terravt's GPU compaction (record_feedback())
   --cache-slots N --page-budget N --window N   terravt's cache, pages per frame, page-table window (512, 48, 64)
   --chunks C --quads-per-chunk Q               the engine's grid: C x C chunks of Q x Q quads (16, 32)
   --out FILE.png          the last frame (default engine_client.png)
@@ -81,6 +84,7 @@ int parse(int argc, char** argv, Args& a) {
     }
     if (flag == "--bench") { a.bench = true; continue; }
     if (flag == "--validation") { a.validation = true; continue; }
+    if (flag == "--cpu-feedback") { a.cpu_feedback = true; continue; }
     if (i + 1 >= argc) return usage_error(flag + ": needs a value");
     const char* v = argv[++i];
     bool ok = true;
@@ -142,6 +146,8 @@ int run(const Args& a) {
   vd.page_budget = a.page_budget;
   vd.window_pages = a.window;
   vd.frames_in_flight = kFramesInFlight;
+  // The GPU route: terravt compacts the pass's feedback buffer (every texel of it) itself.
+  if (!a.cpu_feedback) vd.feedback_texels = engine::feedback_texel_count(a.width, a.height, a.feedback_divisor);
   auto created = terravt::VirtualTexture::create(handles, vd);
   if (!created.ok()) return fail("terravt::VirtualTexture::create: " + created.error().message);
   std::unique_ptr<terravt::VirtualTexture> vt = std::move(created.value());
@@ -156,6 +162,7 @@ int run(const Args& a) {
   pd.quads_per_chunk = a.quads;
   pd.feedback_divisor = a.feedback_divisor;
   pd.frames_in_flight = kFramesInFlight;
+  pd.feedback_on_host = a.cpu_feedback;
   pd.vt = vt->bindings();
   auto pass = engine::TerrainPass::create(*device, pd, error);
   if (!pass) return fail(error);
@@ -190,11 +197,13 @@ int run(const Args& a) {
   camera.far_m = a.far_m;
   const glm::dvec2 ct = pass->camera_texel(camera);
 
-  std::printf("engine_client: terravt %s on %s, V = 2^%u, %ux%u, %u frames, feedback 1/%u\n", terravt::version_string(),
-              device->name().c_str(), info.log2_size, a.width, a.height, a.frames, a.feedback_divisor);
+  std::printf("engine_client: terravt %s on %s, V = 2^%u, %ux%u, %u frames, feedback 1/%u on the %s\n",
+              terravt::version_string(), device->name().c_str(), info.log2_size, a.width, a.height, a.frames,
+              a.feedback_divisor, a.cpu_feedback ? "CPU" : "GPU");
   std::vector<terravt::PageRequest> requests;
   std::vector<double> frame_ms;
   uint64_t produced = 0;
+  size_t requested = 0;  // distinct pages of the newest feedback that reached terravt
   std::optional<uint64_t> newest;  // the newest frame known complete
   int status = 0;
   for (uint64_t f = 0; f < a.frames && status == 0; ++f) {
@@ -202,13 +211,17 @@ int run(const Args& a) {
     const uint32_t slot = uint32_t(f % kFramesInFlight);
     vkWaitForFences(d, 1, &fences[slot], VK_TRUE, UINT64_MAX);  // back-pressure: frame f - 2 is done
     if (f >= kFramesInFlight) newest = f - kFramesInFlight;
-    // The newest finished frame's requests, never waiting: one frame late when the GPU kept up.
+    // The newest finished frame, never waiting: one frame late when the GPU kept up. Its
+    // requests: read back here (CPU route), or its compaction, read by begin_frame() (GPU route).
     for (uint64_t late = 1; late < kFramesInFlight && late <= f; ++late)
       if (vkGetFenceStatus(d, fences[(f - late) % kFramesInFlight]) == VK_SUCCESS) {
         newest = f - late;
         break;
       }
-    if (newest) requests = pass->read_requests(uint32_t(*newest % kFramesInFlight));
+    if (newest && a.cpu_feedback) {
+      requests = pass->read_requests(uint32_t(*newest % kFramesInFlight));
+      requested = requests.size();
+    }
     vkResetFences(d, 1, &fences[slot]);
     VkCommandBuffer cmd = cmds[slot];
     vkResetCommandBuffer(cmd, 0);
@@ -220,7 +233,11 @@ int run(const Args& a) {
     else if (terravt::Status r = vt->record(cmd); !r.ok())
       status = fail("terravt record: " + r.error().message);  // the frame is still complete: finish it
     produced += vt->stats().produced;
+    if (!a.cpu_feedback && vt->stats().feedback_pages > 0) requested = vt->stats().feedback_pages;
     pass->record(cmd, slot, f, camera);
+    if (status == 0 && !a.cpu_feedback)
+      if (terravt::Status s = vt->record_feedback(cmd, pass->feedback_buffer(slot)); !s.ok())
+        status = fail("terravt record_feedback: " + s.error().message);
     if (f + 1 == a.frames) pass->record_readback(cmd, vt->bindings().table_buffer, vt->bindings().table_bytes);
     vkEndCommandBuffer(cmd);
     VkSubmitInfo si{VK_STRUCTURE_TYPE_SUBMIT_INFO};
@@ -234,7 +251,7 @@ int run(const Args& a) {
 
   if (status == 0) {
     std::printf("%zu frames, %llu pages produced, %u resident, %zu pages requested by the last feedback read, %u chunks drawn\n",
-                frame_ms.size(), (unsigned long long)produced, vt->stats().resident, requests.size(), pass->drawn_chunks());
+                frame_ms.size(), (unsigned long long)produced, vt->stats().resident, requested, pass->drawn_chunks());
     if (a.bench) {
       std::vector<double> steady(frame_ms.end() - long(frame_ms.size() / 2), frame_ms.end());
       double sum = 0;

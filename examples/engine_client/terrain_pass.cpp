@@ -269,7 +269,7 @@ std::unique_ptr<TerrainPass> TerrainPass::create(Device& device, const TerrainPa
     s.frame = device.create_buffer(sizeof(FrameConstants), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true);
     s.instances = device.create_buffer(VkDeviceSize(chunks) * 8, VK_BUFFER_USAGE_VERTEX_BUFFER_BIT, true);
     s.feedback = device.create_buffer(VkDeviceSize(t->fb_width_) * t->fb_height_ * 8,
-                                      VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
+                                      VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT, desc.feedback_on_host);
     VkDescriptorSetAllocateInfo ai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
     ai.descriptorPool = t->pool_;
     ai.descriptorSetCount = 1;
@@ -371,9 +371,10 @@ void TerrainPass::record(VkCommandBuffer cmd, uint32_t slot, uint64_t frame, con
   fc.feedback = glm::uvec4(n, (i * 7u) % n, (i / n + i * 3u) % n, fb_width_);
   std::memcpy(s.frame.mapped, &fc, sizeof(fc));
 
-  // Feedback: cleared to "no request" after the previous use of this buffer by the GPU.
-  barrier(cmd, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
-          VK_ACCESS_TRANSFER_WRITE_BIT);
+  // Feedback: cleared to "no request" after the previous use of this buffer by the GPU (this
+  // pass's fragment writes, and on the GPU route terravt's compaction reading it with compute).
+  barrier(cmd, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT,
+          VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT);
   vkCmdFillBuffer(cmd, s.feedback.buffer, 0, VK_WHOLE_SIZE, 0xffffffffu);
   barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT,
           VK_ACCESS_SHADER_WRITE_BIT);
@@ -400,8 +401,10 @@ void TerrainPass::record(VkCommandBuffer cmd, uint32_t slot, uint64_t frame, con
     vkCmdDrawIndexed(cmd, index_count_, drawn_, 0, 0, 0);
   }
   vkCmdEndRenderPass(cmd);
-  barrier(cmd, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT, VK_PIPELINE_STAGE_HOST_BIT,
-          VK_ACCESS_HOST_READ_BIT);
+  // The GPU route needs no barrier here: record_feedback() places its own after these writes.
+  if (desc_.feedback_on_host)
+    barrier(cmd, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT, VK_PIPELINE_STAGE_HOST_BIT,
+            VK_ACCESS_HOST_READ_BIT);
 }
 
 void TerrainPass::record_readback(VkCommandBuffer cmd, VkBuffer table, VkDeviceSize table_bytes) {
@@ -419,6 +422,7 @@ void TerrainPass::record_readback(VkCommandBuffer cmd, VkBuffer table, VkDeviceS
 }
 
 std::vector<terravt::PageRequest> TerrainPass::read_requests(uint32_t slot) const {
+  if (!desc_.feedback_on_host) return {};
   const auto* words = static_cast<const uint32_t*>(slots_[slot].feedback.mapped);
   std::map<uint64_t, uint32_t> pixels;  // (mip, y, x) -> feedback pixels
   for (size_t t = 0; t < size_t(fb_width_) * fb_height_; ++t) {

@@ -1,7 +1,8 @@
 // The engine's terrain pass: a classic VkRenderPass + VkFramebuffer (colour RGBA8 + reverse-Z
 // depth), its own flat chunked grid culled on the CPU and drawn in one instanced draw, its own
 // descriptor set layout with terravt's three descriptors at bindings 5/6/7, and a feedback
-// storage buffer per frame in flight that the fragment shader fills with page requests.
+// storage buffer per frame in flight that the fragment shader fills with page requests (compacted
+// on the GPU by terravt's record_feedback(), or read back here on the CPU).
 #pragma once
 #include <cstdint>
 #include <memory>
@@ -33,8 +34,17 @@ struct TerrainPassDesc {
   uint32_t quads_per_chunk = 32;    // power of two
   uint32_t feedback_divisor = 8;    // one request per N x N pixel block, a rotating pixel per frame
   uint32_t frames_in_flight = 2;
+  // true: the feedback buffers are host-visible and read_requests() reads them (the CPU route);
+  // false: device-local, read only on the GPU by terravt's record_feedback().
+  bool feedback_on_host = false;
   terravt::VirtualTextureBindings vt;
 };
+
+// The feedback texels of a width x height image with one request per divisor x divisor block
+// (what VirtualTextureDesc::feedback_texels must be for the GPU route).
+inline uint32_t feedback_texel_count(uint32_t width, uint32_t height, uint32_t divisor) {
+  return ((width + divisor - 1) / divisor) * ((height + divisor - 1) / divisor);
+}
 
 class TerrainPass {
  public:
@@ -44,13 +54,17 @@ class TerrainPass {
   // The level-0 texel under the camera (what terravt's begin_frame() centres its windows on).
   glm::dvec2 camera_texel(const Camera& camera) const;
   // Records the pass for `camera` with the resources of frame-in-flight `slot` (whose previous
-  // frame the caller has waited for): feedback cleared, chunks culled and drawn, feedback
-  // made visible to the host. `frame` picks the rotating feedback pixel.
+  // frame the caller has waited for): feedback cleared (after earlier fragment writes and
+  // compute reads of it), chunks culled and drawn, and with feedback_on_host the feedback made
+  // visible to the host. `frame` picks the rotating feedback pixel.
   void record(VkCommandBuffer cmd, uint32_t slot, uint64_t frame, const Camera& camera);
+  // The feedback buffer of `slot`: feedback_texel_count() texels of two uint32 words.
+  VkBuffer feedback_buffer(uint32_t slot) const { return slots_[slot].feedback.buffer; }
   // Copies the colour image and terravt's page table into host buffers (the last frame).
   void record_readback(VkCommandBuffer cmd, VkBuffer table, VkDeviceSize table_bytes);
   // The page requests of the frame last recorded in `slot` (its fence has signalled): one per
   // distinct page, weight = the feedback pixels that asked for it, sorted by (mip, y, x).
+  // Only with feedback_on_host (empty otherwise).
   std::vector<terravt::PageRequest> read_requests(uint32_t slot) const;
   // After record_readback()'s frame completed: RGBA8 rows top to bottom, and the table bytes.
   std::vector<uint8_t> colour_rgba() const;
@@ -74,7 +88,8 @@ class TerrainPass {
   VkDescriptorPool pool_ = VK_NULL_HANDLE;
   Buffer vertices_, indices_;
   struct Slot {
-    Buffer frame, instances, feedback;  // host-visible: written or read by the CPU
+    Buffer frame, instances;  // host-visible: written by the CPU
+    Buffer feedback;          // host-visible only with feedback_on_host
     VkDescriptorSet set = VK_NULL_HANDLE;
   };
   std::vector<Slot> slots_;

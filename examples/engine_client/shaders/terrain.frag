@@ -1,6 +1,7 @@
 #version 460
 // Albedo through terravt's virtual texture (the GLSL contract, terravt/vt.glsl), and one page
-// request per N x N pixel block into the engine's feedback buffer, read back on the CPU.
+// request per N x N pixel block into the engine's feedback buffer (compacted by terravt on the
+// GPU, or read back on the CPU with --cpu-feedback).
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #include "common.glsl"
