@@ -21,6 +21,13 @@ void box_filter_rgba8(const uint8_t* src, size_t src_stride, uint32_t w, uint32_
   }
 }
 
+std::vector<uint8_t> page_payload(const VtConfig& vt, std::span<const uint8_t> page) {
+  const size_t P = vt.page_texels, B = vt.border_texels, slot = vt.slot_texels();
+  std::vector<uint8_t> out(P * P * 4);
+  for (size_t y = 0; y < P; ++y) std::copy_n(page.begin() + ptrdiff_t(((y + B) * slot + B) * 4), P * 4, out.begin() + ptrdiff_t(y * P * 4));
+  return out;
+}
+
 FilteredPyramid::FilteredPyramid(const StoreDesc& desc, PageSource level0, PageLookup lookup, Options options)
     : vt_(desc.vt),
       layers_(uint32_t(desc.layers.size())),

@@ -27,6 +27,10 @@ namespace tvt {
 // 2x2 box filter of RGBA8 texels: `src` holds 2w x 2h texels, `dst` gets w x h; strides in bytes.
 void box_filter_rgba8(const uint8_t* src, size_t src_stride, uint32_t w, uint32_t h, uint8_t* dst, size_t dst_stride);
 
+// The P x P payload texels of the first layer of a page ((P+2B)^2 RGBA8 texels): what error
+// figures compare, since a border repeats the neighbours' payload.
+std::vector<uint8_t> page_payload(const VtConfig& vt, std::span<const uint8_t> page);
+
 // Pages that exist already (a store, a bake's output so far). `has` is cheap and must only say
 // true for pages `read` can deliver (page_bytes, the filtered pyramid's bytes); `read` errors
 // name the page.
