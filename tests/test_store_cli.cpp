@@ -111,6 +111,41 @@ TEST_F(StoreCli, ComposedPyramidDiffersFromTheFilteredOneOnlyAboveLevelZero) {
   EXPECT_NE(output_.find("composed pyramid"), std::string::npos) << output_;
 }
 
+// compare reports procedural pages against the filtered pyramid per mip: computed from level-0
+// pages next to its own (composed, identical) bake, or read from a filtered --store, whose
+// frames differ from the procedural ones by design (exit 0).
+TEST_F(StoreCli, CompareReportsTheErrorPerMipAgainstTheFilteredPyramid) {
+  const std::string compare = "compare --quiet --scene " + scene_ + " --frames 3 --every 1 --width 64 --height 36 "
+                              "--cache-slots 64 --page-budget 16 --truth-pages 1 --truth-max-mip 3 --out ";
+  ASSERT_EQ(run(compare + path("own")), 0) << output_;
+  EXPECT_NE(output_.find("images: IDENTICAL"), std::string::npos) << output_;
+  EXPECT_NE(output_.find("procedural pages vs the filtered pyramid"), std::string::npos) << output_;
+  std::ifstream own_json(path("own/compare.json"));
+  const auto own = nlohmann::json::parse(own_json);
+  ASSERT_TRUE(own.contains("error_vs_filtered")) << own.dump(2);
+  for (const auto& [mip, e] : own["error_vs_filtered"].items()) {
+    EXPECT_EQ(e["pages"], 1) << mip;
+    EXPECT_EQ(e["truth"], "computed") << mip;
+    // The 4^m level-0 pages under one page, less those a finer mip's page composed already.
+    EXPECT_GT(e["truth_level0_pages"].get<int>(), 0) << mip;
+    EXPECT_LE(e["truth_level0_pages"].get<int>(), 1 << (2 * std::stoi(mip))) << mip;
+    EXPECT_GT(e["psnr_db"].get<double>(), 5.0) << mip;
+    EXPECT_LT(e["psnr_db"].get<double>(), 99.0) << mip << ": direct composition is not the filtered truth";
+  }
+
+  ASSERT_EQ(run("bake --quiet --method fbpb+dpt2 --scene " + scene_ + " --out " + path("filtered.tvt")), 0) << output_;
+  ASSERT_EQ(run(compare + path("stored") + " --store " + path("filtered.tvt")), 0) << output_;
+  EXPECT_NE(output_.find("DIFFER (expected: the store holds the filtered pyramid)"), std::string::npos) << output_;
+  std::ifstream stored_json(path("stored/compare.json"));
+  const auto stored = nlohmann::json::parse(stored_json);
+  EXPECT_EQ(stored["store"]["pyramid"], "filtered");
+  ASSERT_TRUE(stored.contains("error_vs_filtered")) << stored.dump(2);
+  for (const auto& [mip, e] : stored["error_vs_filtered"].items()) {
+    EXPECT_EQ(e["truth"], "store") << mip;
+    EXPECT_GE(e["pages"].get<int>(), 1) << mip;
+  }
+}
+
 TEST_F(StoreCli, BadFlagsNameTheFieldAndWriteNothing) {
   const std::string out = path("out.tvt");
   const std::pair<std::string, std::string> cases[] = {
