@@ -61,10 +61,6 @@ const uint8_t* FilteredPyramid::insert(const PageId& page, std::vector<uint8_t> 
   return lru_.back().second.data();
 }
 
-void FilteredPyramid::remember(const PageId& page, std::span<const uint8_t> bytes) {
-  if (bytes.size() == page_bytes_) insert(page, std::vector<uint8_t>(bytes.begin(), bytes.end()));
-}
-
 // The page's bytes, valid until the next cache change; nullptr for a mip >= 1 page that does
 // not exist (the caller filters the mip below). Level-0 pages are composed when missing.
 Result<const uint8_t*> FilteredPyramid::get(const PageId& page) {

@@ -55,8 +55,6 @@ class FilteredPyramid {
   // Only its P x P payload texels per layer (no border): at mip m exactly the 4^m level-0
   // pages under it are needed, where page() also needs a ring of neighbours.
   Result<std::vector<uint8_t>> payload(const PageId& page);
-  // A page of this pyramid made elsewhere (the bake's own output) enters the cache.
-  void remember(const PageId& page, std::span<const uint8_t> bytes);
 
   uint64_t composed_pages() const { return composed_; }  // level-0 pages asked from the source
   uint64_t read_pages() const { return read_; }          // pages read through the lookup
