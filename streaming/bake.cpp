@@ -231,6 +231,7 @@ Result<BakeSummary> bake_store(const std::string& path, const StoreDesc& desc, s
       // page's vector into `out` keeps its bytes where they are.
       compressing = std::move(producing);
       producing.clear();
+      pyramid->prepare(ids, true);  // the level-0 pages the whole batch lacks, composed in batches
       for (size_t i = 0; i < ids.size();) {
         if (ids[i].mip > 0) {
           auto page = pyramid->page(ids[i]);

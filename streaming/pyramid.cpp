@@ -96,7 +96,7 @@ void FilteredPyramid::collect(uint32_t mip, const Rect& r) {
   for (uint64_t py = r.y0 / P; py <= (r.y0 + r.h - 1) / P; ++py)
     for (uint64_t px = r.x0 / P; px <= (r.x0 + r.w - 1) / P; ++px) {
       const PageId id{mip, uint32_t(px), uint32_t(py)};
-      if (by_page_.contains(id.pack()) || (lookup_.has && lookup_.has(id))) continue;
+      if (by_page_.contains(id.pack()) || coming_.contains(id.pack()) || (lookup_.has && lookup_.has(id))) continue;
       const uint64_t x0 = std::max(r.x0, px * P), x1 = std::min(r.x0 + r.w, px * P + P);
       const uint64_t y0 = std::max(r.y0, py * P), y1 = std::min(r.y0 + r.h, py * P + P);
       if (mip == 0) {
@@ -141,19 +141,45 @@ Result<std::vector<uint8_t>> FilteredPyramid::texels(uint32_t mip, const Rect& r
   return out;
 }
 
+FilteredPyramid::Rect FilteredPyramid::source_rect(const PageId& page, bool border) const {
+  const int64_t P = vt_.page_texels, B = border ? vt_.border_texels : 0;
+  const int64_t last = int64_t(vt_.mip_texels(page.mip)) - 1;  // texels beyond it clamp to it
+  const int64_t x0 = std::clamp<int64_t>(page.x * P - B, 0, last), x1 = std::clamp<int64_t>(page.x * P + P + B - 1, 0, last);
+  const int64_t y0 = std::clamp<int64_t>(page.y * P - B, 0, last), y1 = std::clamp<int64_t>(page.y * P + P + B - 1, 0, last);
+  return Rect{uint64_t(2 * x0), uint64_t(2 * y0), uint32_t(2 * (x1 - x0 + 1)), uint32_t(2 * (y1 - y0 + 1))};
+}
+
+void FilteredPyramid::prepare(std::span<const PageId> pages, bool border) {
+  upcoming_.clear();
+  upcoming_at_.clear();
+  prepared_.clear();
+  coming_.clear();
+  for (const PageId& page : pages) {
+    if (page.mip > 0 && is_valid(vt_, page)) {
+      collect(page.mip - 1, source_rect(page, border));
+      prepared_[page.pack()] = border;
+    }
+    coming_[page.pack()] = true;
+  }
+}
+
+void FilteredPyramid::start(const PageId& page, bool border) {
+  coming_.erase(page.pack());
+  if (const auto it = prepared_.find(page.pack()); it != prepared_.end() && it->second == border) {
+    prepared_.erase(it);
+    return;
+  }
+  upcoming_.clear();
+  upcoming_at_.clear();
+  if (page.mip > 0) collect(page.mip - 1, source_rect(page, border));
+}
+
 Result<std::vector<uint8_t>> FilteredPyramid::payload(const PageId& page) {
   if (!is_valid(vt_, page)) return make_error(to_string(page) + ": outside the virtual texture");
   const uint32_t P = vt_.page_texels;
-  const Rect r{uint64_t(page.x) * P, uint64_t(page.y) * P, P, P};
-  if (page.mip == 0) {
-    upcoming_.clear();
-    upcoming_at_.clear();
-    return texels(0, r);
-  }
-  const Rect fine{2 * r.x0, 2 * r.y0, 2 * P, 2 * P};
-  upcoming_.clear();
-  upcoming_at_.clear();
-  collect(page.mip - 1, fine);
+  start(page, false);
+  if (page.mip == 0) return texels(0, Rect{uint64_t(page.x) * P, uint64_t(page.y) * P, P, P});
+  const Rect fine = source_rect(page, false);
   auto t = texels(page.mip - 1, fine);
   if (!t) return t.error();
   std::vector<uint8_t> out(size_t(layers_) * P * P * 4);
@@ -166,23 +192,18 @@ Result<std::vector<uint8_t>> FilteredPyramid::payload(const PageId& page) {
 Result<std::vector<uint8_t>> FilteredPyramid::page(const PageId& page) {
   if (!is_valid(vt_, page)) return make_error(to_string(page) + ": outside the virtual texture");
   const int64_t P = vt_.page_texels, B = vt_.border_texels, slot = vt_.slot_texels();
+  start(page, true);
   if (page.mip == 0) {
-    upcoming_.clear();
-    upcoming_at_.clear();
     auto got = get(page);
     if (!got) return got.error();
     const uint8_t* p = got.value();
     return std::vector<uint8_t>(p, p + page_bytes_);
   }
-  // The mip-m texels the slot shows after the edge clamp: one rectangle inside the mip.
+  // The mip-m texels the slot shows after the edge clamp: one rectangle r inside the mip.
   const int64_t last = int64_t(vt_.mip_texels(page.mip)) - 1;
-  const int64_t x0 = std::clamp<int64_t>(page.x * P - B, 0, last), x1 = std::clamp<int64_t>(page.x * P + P + B - 1, 0, last);
-  const int64_t y0 = std::clamp<int64_t>(page.y * P - B, 0, last), y1 = std::clamp<int64_t>(page.y * P + P + B - 1, 0, last);
-  const Rect r{uint64_t(x0), uint64_t(y0), uint32_t(x1 - x0 + 1), uint32_t(y1 - y0 + 1)};
-  const Rect fine{2 * r.x0, 2 * r.y0, 2 * r.w, 2 * r.h};
-  upcoming_.clear();
-  upcoming_at_.clear();
-  collect(page.mip - 1, fine);
+  const Rect fine = source_rect(page, true);
+  const Rect r{fine.x0 / 2, fine.y0 / 2, fine.w / 2, fine.h / 2};
+  const int64_t x0 = int64_t(r.x0), y0 = int64_t(r.y0);
   auto t = texels(page.mip - 1, fine);
   if (!t) return t.error();
   std::vector<uint8_t> filtered(size_t(layers_) * r.w * r.h * 4);

@@ -56,6 +56,11 @@ class FilteredPyramid {
   // pages under it are needed, where page() also needs a ring of neighbours.
   Result<std::vector<uint8_t>> payload(const PageId& page);
 
+  // Lists up front the level-0 pages that page() (border) or payload() of each of `pages`, asked
+  // in this order, will compose, so that they are composed in batches across pages. Pages of
+  // the list count as existing for the later ones (a bake produces them in this order).
+  void prepare(std::span<const PageId> pages, bool border);
+
   uint64_t composed_pages() const { return composed_; }  // level-0 pages asked from the source
   uint64_t read_pages() const { return read_; }          // pages read through the lookup
 
@@ -64,6 +69,8 @@ class FilteredPyramid {
     uint64_t x0 = 0, y0 = 0;
     uint32_t w = 0, h = 0;
   };
+  Rect source_rect(const PageId& page, bool border) const;  // the mip m-1 texels a page filters
+  void start(const PageId& page, bool border);              // lists its level-0 needs unless prepared
   Result<std::vector<uint8_t>> texels(uint32_t mip, const Rect& r);
   Status fill(uint32_t mip, const Rect& r, uint8_t* out, size_t row, size_t plane);
   void collect(uint32_t mip, const Rect& r);
@@ -84,6 +91,8 @@ class FilteredPyramid {
   // the next batch of them at once.
   std::vector<PageId> upcoming_;
   std::unordered_map<uint64_t, size_t> upcoming_at_;
+  std::unordered_map<uint64_t, bool> prepared_;  // packed page -> listed by prepare(), not asked yet
+  std::unordered_map<uint64_t, bool> coming_;    // packed pages of the prepare() list
   uint64_t composed_ = 0, read_ = 0;
 };
 

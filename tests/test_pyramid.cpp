@@ -211,8 +211,19 @@ TEST_F(PyramidTest, RegionAndMipRangeBakesMakeTheFinerPagesTheyDoNotHoldAndMatch
   ASSERT_EQ(pages.size(), plan.size());
   for (const auto& [id, page] : pages) EXPECT_EQ(page, whole.at(id)) << to_string(PageId::unpack(id));
 
-  // The pyramid on its own (compare's and bench mips' truth) gives the same pages.
+  // The pyramid on its own (compare's and bench mips' truth) gives the same pages, with its
+  // level-0 needs listed up front (prepare) or page by page, and composes each level-0 page once.
   FilteredPyramid pyramid(desc_, synthetic_source(desc_), PageLookup{}, FilteredPyramid::Options{});
+  FilteredPyramid prepared(desc_, synthetic_source(desc_), PageLookup{}, FilteredPyramid::Options{});
+  const std::vector<PageId> ids = {PageId{1, 7, 0}, PageId{2, 0, 2}, PageId{3, 0, 1}};
+  prepared.prepare(ids, false);
+  for (const PageId& id : ids) {
+    auto a = prepared.payload(id);
+    auto b = pyramid.payload(id);
+    ASSERT_TRUE(a.ok() && b.ok());
+    EXPECT_EQ(a.value(), b.value()) << to_string(id);
+  }
+  EXPECT_EQ(prepared.composed_pages(), 4u + 16u + 64u - 16u) << "mip 3 (0,1) holds mip 2 (0,2)'s 16 level-0 pages";
   for (const PageId id : {PageId{3, 1, 1}, PageId{4, 0, 0}, PageId{1, 7, 0}}) {
     auto page = pyramid.page(id);
     ASSERT_TRUE(page.ok()) << page.error().message;

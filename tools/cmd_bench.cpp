@@ -235,6 +235,7 @@ int run_bench_mips(const BenchMipsArgs& a) {
     }, PageLookup{}, FilteredPyramid::Options{});
     const auto t0 = std::chrono::steady_clock::now();
     std::vector<std::vector<uint8_t>> truth;
+    pyramid.prepare(pages, false);
     for (const PageId& page : pages) {
       auto t = pyramid.payload(page);
       if (!t) return fail(cmd, t.error().message, 1);
