@@ -9,8 +9,10 @@
 #include <condition_variable>
 #include <mutex>
 #include <thread>
+#include <unordered_map>
 #include <unordered_set>
 
+#include "streaming/pyramid.h"
 #include "streaming/store_writer.h"
 
 namespace tvt {
@@ -106,6 +108,32 @@ Status check_plan(const std::string& path, const StoreDesc& desc, std::span<cons
   return Ok{};
 }
 
+// Stores given as BakeOptions::finer: opened, and checked to hold pages of the same pyramid.
+struct FinerStore {
+  std::unique_ptr<PageStoreReader> reader;
+  std::unique_ptr<PageStoreReader::Decoder> decoder;
+};
+Result<std::vector<FinerStore>> open_finer(const std::string& path, const StoreDesc& desc, std::span<const std::string> files) {
+  std::vector<FinerStore> out;
+  for (const std::string& f : files) {
+    auto r = PageStoreReader::open(f);
+    if (!r) return make_error(path + ": options finer: " + r.error().message);
+    const StoreDesc& d = r.value()->desc();
+    const char* what = d.pyramid != StorePyramid::filtered ? "pyramid (it is not a filtered store)"
+                       : !(d.vt.log2_size == desc.vt.log2_size && d.vt.page_texels == desc.vt.page_texels &&
+                           d.vt.border_texels == desc.vt.border_texels) ? "vt"
+                       : d.layers != desc.layers ? "layers"
+                       : d.scene_hash != desc.scene_hash ? "scene_hash"
+                       : d.producer != desc.producer ? "producer" : nullptr;
+    if (what) return make_error(path + ": options finer: " + f + " holds pages of another bake: it differs in " + what);
+    FinerStore s;
+    s.decoder = r.value()->make_decoder();
+    s.reader = std::move(r.value());
+    out.push_back(std::move(s));
+  }
+  return out;
+}
+
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -143,6 +171,95 @@ Result<BakeSummary> bake_store(const std::string& path, const StoreDesc& desc, s
   if (summary.resumed_pages == 0)
     if (auto s = writer.start(header_bytes, desc.dictionary); !s) return s.error();
 
+  // The filtered pyramid: level-0 pages come from `source`, each coarser page from the pyramid,
+  // which reads finer pages back from this file (records before the batch being compressed are
+  // on disk: each batch is flushed before the one after the next is asked for), from the two
+  // batches in flight (the one being compressed and the one being produced), from `finer`
+  // stores, and makes them again when none has them.
+  std::unique_ptr<FilteredPyramid> pyramid;
+  std::vector<FinerStore> finer;
+  // (packed page, record index in this file), sorted: 16 bytes a page, less than a hash map.
+  std::vector<std::pair<uint64_t, uint64_t>> position;
+  // Pages of the batch being compressed and of the one being produced, not on disk yet: their
+  // bytes stay where they are (the batch buffers) until written.
+  std::unordered_map<uint64_t, const uint8_t*> compressing, producing;
+  const PageDecompressor decompressor(desc);
+  std::vector<uint8_t> blob;
+  // The record index of a page this file holds already, or UINT64_MAX.
+  auto in_file = [&](const PageId& p) {
+    const auto it = std::lower_bound(position.begin(), position.end(), std::pair(p.pack(), uint64_t(0)));
+    return it != position.end() && it->first == p.pack() && it->second < writer.records() ? it->second : UINT64_MAX;
+  };
+  PageSource produce = source;
+  if (desc.pyramid == StorePyramid::filtered) {
+    auto opened_finer = open_finer(path, desc, options.finer);
+    if (!opened_finer) return opened_finer.error();
+    finer = std::move(opened_finer.value());
+    position.reserve(pages.size());
+    for (size_t i = 0; i < pages.size(); ++i) position.emplace_back(pages[i].pack(), i);
+    std::sort(position.begin(), position.end());
+    PageLookup lookup;
+    lookup.has = [&](const PageId& p) {
+      if (compressing.contains(p.pack()) || producing.contains(p.pack()) || in_file(p) != UINT64_MAX) return true;
+      return std::any_of(finer.begin(), finer.end(), [&](const FinerStore& f) { return f.reader->contains(p); });
+    };
+    lookup.read = [&](const PageId& p, std::span<uint8_t> out) -> Status {
+      for (const auto* batch : {&producing, &compressing})
+        if (const auto it = batch->find(p.pack()); it != batch->end()) {
+          std::copy_n(it->second, out.size(), out.begin());
+          return Ok{};
+        }
+      if (const uint64_t i = in_file(p); i != UINT64_MAX) {
+        if (!writer.read_blob(i, blob) || !decompressor.decompress(blob, out) || sf::hash(out) != writer.entry(i).page_hash)
+          return make_error(sf::page_where(writer.partial_path(), p) + ": cannot read it back to filter from (damaged)");
+        return Ok{};
+      }
+      for (FinerStore& f : finer)
+        if (f.reader->contains(p)) {
+          std::string message;
+          if (f.reader->read_page(p, out, *f.decoder, &message) != PageError::none) return make_error(message);
+          return Ok{};
+        }
+      return make_error(to_string(p) + ": not in the store");
+    };
+    FilteredPyramid::Options po;
+    po.batch_pages = options.batch_pages;
+    po.cache_pages = 2 * options.batch_pages + 176;  // composed pages one request needs, and rows of finer pages
+    pyramid = std::make_unique<FilteredPyramid>(desc, source, std::move(lookup), po);
+    produce = [&](std::span<const PageId> ids, std::vector<std::vector<uint8_t>>& out) -> Status {
+      // The previous call's pages are now being compressed; the one before is on disk. Moving a
+      // page's vector into `out` keeps its bytes where they are.
+      compressing = std::move(producing);
+      producing.clear();
+      pyramid->prepare(ids, true);  // the level-0 pages the whole batch lacks, composed in batches
+      for (size_t i = 0; i < ids.size();) {
+        if (ids[i].mip > 0) {
+          auto page = pyramid->page(ids[i]);
+          if (!page) return page.error();
+          out.push_back(std::move(page.value()));
+          producing.emplace(ids[i].pack(), out.back().data());
+          ++i;
+          continue;
+        }
+        size_t j = i;
+        while (j < ids.size() && ids[j].mip == 0) ++j;
+        std::vector<std::vector<uint8_t>> level0;
+        if (auto s = source(ids.subspan(i, j - i), level0); !s) return s;
+        if (level0.size() != j - i)
+          return make_error("returned " + std::to_string(level0.size()) + " level-0 pages for " + std::to_string(j - i));
+        for (size_t k = 0; k < level0.size(); ++k) {
+          if (level0[k].size() != desc.page_bytes())
+            return make_error("returned " + std::to_string(level0[k].size()) + " bytes for page " + to_string(ids[i + k]) +
+                              ", expected " + std::to_string(desc.page_bytes()));
+          out.push_back(std::move(level0[k]));
+          producing.emplace(ids[i + k].pack(), out.back().data());
+        }
+        i = j;
+      }
+      return Ok{};
+    };
+  }
+
   const uint32_t threads = std::clamp(options.threads ? options.threads : std::thread::hardware_concurrency(), 1u, 256u);
   CompressPool pool(desc, threads);
   const uint64_t total = pages.size();
@@ -151,7 +268,7 @@ Result<BakeSummary> bake_store(const std::string& path, const StoreDesc& desc, s
   auto fetch = [&](uint64_t first, std::vector<std::vector<uint8_t>>& raw) -> Status {
     const auto ids = pages.subspan(size_t(first), size_t(std::min<uint64_t>(options.batch_pages, total - first)));
     raw.clear();
-    if (auto s = source(ids, raw); !s)
+    if (auto s = produce(ids, raw); !s)
       return make_error(path + ": page source failed at plan page " + std::to_string(range.first + first) + " " +
                         to_string(ids.front()) + ": " + s.error().message);
     if (raw.size() != ids.size())
@@ -229,6 +346,10 @@ Result<BakeSummary> bake_store(const std::string& path, const StoreDesc& desc, s
   summary.stored_bytes = writer.stored_bytes();
   summary.file_bytes = file_bytes.value();
   summary.seconds = seconds_since(t0);
+  if (pyramid) {
+    summary.extra_composed = pyramid->composed_pages();
+    summary.read_back = pyramid->read_pages();
+  }
   return summary;
 }
 

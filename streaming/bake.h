@@ -29,11 +29,18 @@ struct BakeOptions {
   uint32_t shard_index = 0, shard_count = 1;
   std::function<void(const BakeProgress&)> progress;  // called after every batch, on the baking thread
   std::function<bool()> cancelled;  // polled between batches; true: stop, keep the .partial (resumable)
+  // desc.pyramid == filtered only: stores that hold pages of this same filtered bake (other
+  // shards' finished files, a store of the finer mips). A coarse page's finer pages are read
+  // from this bake's own file first, then from these, and made again only when neither has them.
+  std::vector<std::string> finer;
 };
 struct BakeSummary {
   uint64_t pages = 0, resumed_pages = 0, raw_bytes = 0, stored_bytes = 0, file_bytes = 0;
   double seconds = 0;
   std::string resume_note;  // why an existing .partial was started over (too short for a header)
+  // Filtered pyramid: level-0 pages composed that the store does not hold (a region's edge,
+  // mips below the plan's, pages of other shards) and finer pages read back to filter from.
+  uint64_t extra_composed = 0, read_back = 0;
 };
 
 // Writes `path` atomically: everything goes to `<path>.partial` (records appended in plan order,
@@ -41,6 +48,10 @@ struct BakeSummary {
 // rename. An existing store at `path` is untouched until the rename. The result is
 // byte-identical whatever the thread count and however often it was interrupted and resumed.
 // The plan must be non-empty, hold no duplicates and only pages valid for desc.vt.
+// desc.pyramid == filtered (streaming/pyramid.h): `source` is asked for level-0 pages only; every
+// coarser page is the box filter of the mip below, read back from the pages this bake wrote
+// (bake_plan(..., filtered) puts them first) or made again. The file is then byte-identical
+// whatever the plan's order, batch size, threads, resumes, shards and `finer` stores.
 // Cancellation returns an error ("... cancelled ...") and keeps the .partial.
 Result<BakeSummary> bake_store(const std::string& path, const StoreDesc& desc, std::span<const PageId> plan,
                                const PageSource& source, const BakeOptions& options);
@@ -52,8 +63,14 @@ Result<BakeSummary> merge_stores(std::span<const std::string> parts, const std::
 
 // Page-by-page verification for `terravt verify`: every problem, one line each. An error only
 // when the file cannot be opened at all; a damaged header or index is a problem line.
+// A filtered store's mip-m pages (m >= 1) whose finer pages (children and neighbours) are all in
+// the store and read are also checked to be exactly their box filter (streaming/pyramid.h); a
+// page that is not is a problem line (one whose finer pages do not read stays unchecked: the
+// damaged finer page has its own line).
 struct VerifyReport {
   uint64_t pages = 0, ok = 0;
+  StorePyramid pyramid = StorePyramid::composed;
+  uint64_t filter_checked = 0;  // filtered stores: coarse pages checked against the finer mip
   std::vector<std::string> problems;
 };
 Result<VerifyReport> verify_store(const std::string& path, uint32_t threads = 0);

@@ -22,6 +22,14 @@ std::string_view to_string(PageLayerFormat format) {
   return "unknown";
 }
 
+std::string_view to_string(StorePyramid pyramid) {
+  switch (pyramid) {
+    case StorePyramid::composed: return "composed";
+    case StorePyramid::filtered: return "filtered";
+  }
+  return "unknown";
+}
+
 std::string_view to_string(PageError error) {
   switch (error) {
     case PageError::none: return "none";
@@ -41,7 +49,7 @@ uint64_t StoreDesc::page_bytes() const {
 bool operator==(const StoreDesc& a, const StoreDesc& b) {
   return a.vt.log2_size == b.vt.log2_size && a.vt.page_texels == b.vt.page_texels &&
          a.vt.border_texels == b.vt.border_texels && a.layers == b.layers && a.scene_hash == b.scene_hash &&
-         a.producer == b.producer && a.zstd_level == b.zstd_level && a.dictionary == b.dictionary;
+         a.producer == b.producer && a.zstd_level == b.zstd_level && a.dictionary == b.dictionary && a.pyramid == b.pyramid;
 }
 
 Status validate(const StoreDesc& d, const std::string& where) {
@@ -57,6 +65,8 @@ Status validate(const StoreDesc& d, const std::string& where) {
   if (d.producer.find('\0') != std::string::npos) return make_error(where + " producer: must not contain NUL bytes");
   if (!((d.zstd_level >= 1 && d.zstd_level <= 19) || (d.zstd_level >= -5 && d.zstd_level <= -1)))
     return make_error(where + " zstd_level: must be 1..19 or -5..-1, got " + std::to_string(d.zstd_level));
+  if (d.pyramid != StorePyramid::composed && d.pyramid != StorePyramid::filtered)
+    return make_error(where + " pyramid: must be composed (0) or filtered (1), got " + std::to_string(uint32_t(d.pyramid)));
   if (d.dictionary.size() > sf::k_max_dictionary_bytes)
     return make_error(where + " dictionary: at most 64 MiB, got " + std::to_string(d.dictionary.size()) + " bytes");
   if (!d.dictionary.empty()) {
@@ -67,7 +77,7 @@ Status validate(const StoreDesc& d, const std::string& where) {
   return Ok{};
 }
 
-Result<std::vector<PageId>> bake_plan(const VtConfig& vt, const BakeRegion& r) {
+Result<std::vector<PageId>> bake_plan(const VtConfig& vt, const BakeRegion& r, StorePyramid order) {
   if (auto s = validate(vt, "bake plan: vt"); !s) return s.error();
   const uint64_t size = vt.size_texels();
   const uint64_t x1 = std::min(r.x1, size), y1 = std::min(r.y1, size);
@@ -94,11 +104,12 @@ Result<std::vector<PageId>> bake_plan(const VtConfig& vt, const BakeRegion& r) {
   }
   std::vector<PageId> plan;
   plan.reserve(total);
-  uint32_t m = mip_hi;
-  for (const Span& s : spans) {
+  for (size_t i = 0; i < spans.size(); ++i) {
+    const size_t k = order == StorePyramid::filtered ? spans.size() - 1 - i : i;  // spans[k] is mip mip_hi - k
+    const Span& s = spans[k];
+    const uint32_t m = mip_hi - uint32_t(k);
     for (uint64_t y = s.y0; y < s.y1; ++y)
       for (uint64_t x = s.x0; x < s.x1; ++x) plan.push_back(PageId{m, uint32_t(x), uint32_t(y)});
-    --m;
   }
   return plan;
 }
@@ -333,6 +344,26 @@ PageCompressor::PageCompressor(const StoreDesc& desc) : level_(desc.zstd_level) 
 PageCompressor::~PageCompressor() {
   ZSTD_freeCDict(cdict_);
   ZSTD_freeCCtx(cctx_);
+}
+
+PageDecompressor::PageDecompressor(const StoreDesc& desc) {
+  dctx_ = ZSTD_createDCtx();
+  TVT_CHECK(dctx_ != nullptr);
+  if (!desc.dictionary.empty()) {
+    ddict_ = ZSTD_createDDict(desc.dictionary.data(), desc.dictionary.size());
+    TVT_CHECK(ddict_ != nullptr);  // validate(desc) loaded it
+  }
+}
+
+PageDecompressor::~PageDecompressor() {
+  ZSTD_freeDDict(ddict_);
+  ZSTD_freeDCtx(dctx_);
+}
+
+bool PageDecompressor::decompress(std::span<const uint8_t> blob, std::span<uint8_t> out) const {
+  const size_t r = ddict_ ? ZSTD_decompress_usingDDict(dctx_, out.data(), out.size(), blob.data(), blob.size(), ddict_)
+                          : ZSTD_decompressDCtx(dctx_, out.data(), out.size(), blob.data(), blob.size());
+  return !ZSTD_isError(r) && r == out.size();
 }
 
 std::vector<uint8_t> PageCompressor::compress(std::span<const uint8_t> page) const {

@@ -28,6 +28,14 @@ namespace tvt {
 enum class PageLayerFormat : uint32_t { rgba8_albedo_height = 1 };  // (P+2B)^2 * 4 bytes per layer
 std::string_view to_string(PageLayerFormat format);
 
+// Which mip pyramid a store holds (header field `pyramid`; stores written before the field
+// existed hold 0 there and read as `composed`). docs/page-store.md, "Filtered pyramid".
+enum class StorePyramid : uint32_t {
+  composed = 0,  // every page composed at its own mip: byte-identical to what the VT composes
+  filtered = 1,  // level 0 composed; every texel of a mip-m page the box filter of mip m-1
+};
+std::string_view to_string(StorePyramid pyramid);  // "composed", "filtered"
+
 struct StoreDesc {  // what a store holds; written in the header
   VtConfig vt;      // log2_size, page_texels, border_texels
   std::vector<PageLayerFormat> layers{PageLayerFormat::rgba8_albedo_height};  // 1..4
@@ -35,6 +43,7 @@ struct StoreDesc {  // what a store holds; written in the header
   std::string producer;             // free text <= 63 bytes, e.g. "gpu fbpb+dpt2"
   int zstd_level = 3;               // 1..19 (negative fast levels allowed: -5..-1)
   std::vector<uint8_t> dictionary;  // zstd dictionary, empty: none (stored in the file)
+  StorePyramid pyramid = StorePyramid::composed;
   uint64_t page_bytes() const;      // raw bytes of one page, all layers
 
   friend bool operator==(const StoreDesc&, const StoreDesc&);
@@ -54,7 +63,8 @@ struct StoreEntry {          // one index entry
 enum class PageError : uint8_t { none, missing, io, truncated, corrupt };
 std::string_view to_string(PageError error);
 
-// Bake order: mips from coarsest to finest, then y, then x. Pages of mips [mip_lo, mip_hi]
+// Bake order: mips from coarsest to finest (`filtered`: finest to coarsest, so that the finer
+// mip a page is filtered from is in the store before it), then y, then x. Pages of mips [mip_lo, mip_hi]
 // whose footprint intersects the level-0 texel rectangle [x0,x1)×[y0,y1) (default: whole VT).
 // Coordinates beyond the VT and mip_hi beyond the top mip are clamped.
 struct BakeRegion {
@@ -62,7 +72,9 @@ struct BakeRegion {
   uint32_t mip_lo = 0, mip_hi = UINT32_MAX;
 };
 inline constexpr uint64_t k_max_plan_pages = uint64_t(1) << 28;  // bake larger terrains in regions
-Result<std::vector<PageId>> bake_plan(const VtConfig& vt, const BakeRegion& region);  // errors on empty/invalid region
+// Errors on an empty or invalid region.
+Result<std::vector<PageId>> bake_plan(const VtConfig& vt, const BakeRegion& region,
+                                      StorePyramid order = StorePyramid::composed);
 
 // Deterministic part i of n of a plan of `count` pages: [first, first+count). The first
 // `plan_pages % n` parts get one page more. {0, 0} when n == 0 or i >= n.
@@ -162,6 +174,22 @@ class PageCompressor {
   ZSTD_CCtx_s* cctx_ = nullptr;  // mutable state behind a const interface: reused between pages
   ZSTD_CDict_s* cdict_ = nullptr;
   int level_ = 3;
+};
+
+// Per-thread zstd decompressor with the store's dictionary, for pages a bake reads back from its
+// own partial file. Not thread-safe; `desc` must be valid.
+class PageDecompressor {
+ public:
+  explicit PageDecompressor(const StoreDesc& desc);
+  ~PageDecompressor();
+  PageDecompressor(const PageDecompressor&) = delete;
+  PageDecompressor& operator=(const PageDecompressor&) = delete;
+  // Decompresses one zstd frame into exactly out.size() bytes; false when it does not.
+  bool decompress(std::span<const uint8_t> blob, std::span<uint8_t> out) const;
+
+ private:
+  ZSTD_DCtx_s* dctx_ = nullptr;
+  ZSTD_DDict_s* ddict_ = nullptr;
 };
 
 // Trains a zstd dictionary (ZDICT) from sample pages; deterministic for the same samples.

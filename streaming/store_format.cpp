@@ -48,6 +48,7 @@ std::array<uint8_t, k_header_bytes> encode_header(const Header& h) {
   put_u64(p + off::scene_hash, h.desc.scene_hash);
   std::memcpy(p + off::producer, h.desc.producer.data(), std::min<size_t>(h.desc.producer.size(), k_producer_bytes - 1));
   put_u32(p + off::zstd_level, uint32_t(h.desc.zstd_level));
+  put_u32(p + off::pyramid, uint32_t(h.desc.pyramid));
   put_u64(p + off::dict_offset, h.dict_offset);
   put_u64(p + off::dict_bytes, h.dict_bytes);
   put_u64(p + off::dict_hash, h.dict_hash);
@@ -139,8 +140,12 @@ std::optional<Header> decode_header(std::span<const uint8_t> bytes, uint64_t fil
   h.desc.zstd_level = int32_t(get_u32(p + off::zstd_level));
   if (!((h.desc.zstd_level >= 1 && h.desc.zstd_level <= 19) || (h.desc.zstd_level >= -5 && h.desc.zstd_level <= -1)))
     bad("zstd_level", "must be 1..19 or -5..-1, got " + std::to_string(h.desc.zstd_level));
-  if (get_u32(p + off::reserved0) != 0 ||
-      std::any_of(p + off::reserved, p + off::header_hash, [](uint8_t c) { return c != 0; }))
+  // Was a reserved 0 before filtered stores existed: older stores read as `composed`.
+  const uint32_t pyramid = get_u32(p + off::pyramid);
+  if (pyramid > uint32_t(StorePyramid::filtered))
+    bad("pyramid", "must be 0 (composed) or 1 (filtered), got " + std::to_string(pyramid));
+  h.desc.pyramid = StorePyramid(std::min(pyramid, uint32_t(StorePyramid::filtered)));
+  if (std::any_of(p + off::reserved, p + off::header_hash, [](uint8_t c) { return c != 0; }))
     bad("reserved", "reserved bytes must be 0");
 
   h.dict_offset = get_u64(p + off::dict_offset);

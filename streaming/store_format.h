@@ -34,7 +34,7 @@ inline constexpr uint64_t k_max_dictionary_bytes = uint64_t(1) << 26;
 namespace off {
 inline constexpr size_t magic = 0, version = 8, header_bytes = 12, log2_size = 16, page_texels = 20,
                         border_texels = 24, layer_count = 28, layers = 32, page_bytes = 48, scene_hash = 56,
-                        producer = 64, zstd_level = 128, reserved0 = 132, dict_offset = 136, dict_bytes = 144,
+                        producer = 64, zstd_level = 128, pyramid = 132, dict_offset = 136, dict_bytes = 144,
                         dict_hash = 152, shard_index = 160, shard_count = 164, plan_pages = 168, plan_hash = 176,
                         first_plan_page = 184, page_count = 192, index_offset = 200, index_bytes = 208,
                         index_hash = 216, reserved = 224, header_hash = 248;

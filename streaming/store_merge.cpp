@@ -21,6 +21,7 @@ std::string desc_difference(const StoreDesc& a, const StoreDesc& b) {
   if (a.producer != b.producer) return "producer";
   if (a.zstd_level != b.zstd_level) return "zstd_level";
   if (a.dictionary != b.dictionary) return "dictionary";
+  if (a.pyramid != b.pyramid) return "pyramid";
   return {};
 }
 

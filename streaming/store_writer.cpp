@@ -41,6 +41,7 @@ std::string header_difference(const uint8_t* partial, const uint8_t* wanted) {
   differs("scene", off::scene_hash, 8);
   differs("producer", off::producer, k_producer_bytes);
   differs("zstd level", off::zstd_level, 4);
+  differs("pyramid", off::pyramid, 4);
   differs("dictionary", off::dict_offset, off::shard_index - off::dict_offset);
   differs("plan", off::plan_pages, 16);
   differs("shard", off::shard_index, 8);
@@ -105,6 +106,14 @@ Result<uint64_t> StoreWriter::resume(const std::array<uint8_t, k_header_bytes>& 
   if (::ftruncate(fd_.get(), off_t(pos)) != 0) return make_error(partial_ + ": cannot truncate: " + fileio::errno_text(errno));
   end_ = written_ = pos;
   return uint64_t(entries_.size());
+}
+
+bool StoreWriter::read_blob(uint64_t i, std::vector<uint8_t>& blob) const {
+  if (i >= entries_.size()) return false;
+  const StoreEntry& e = entries_[size_t(i)];
+  if (e.offset + e.stored_bytes > written_) return false;
+  blob.resize(e.stored_bytes);
+  return fileio::pread_full(fd_.get(), blob.data(), blob.size(), e.offset) == int64_t(blob.size()) && hash(blob) == e.blob_hash;
 }
 
 Status StoreWriter::start(const std::array<uint8_t, k_header_bytes>& header, std::span<const uint8_t> dictionary) {

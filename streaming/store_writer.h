@@ -45,6 +45,10 @@ class StoreWriter {
   void discard();
 
   uint64_t records() const { return entries_.size(); }
+  // Record `i` (0-based, in append order) as written: its entry, and its blob read back into
+  // `blob` once flush() put it on disk. False when it is not on disk yet or cannot be read.
+  const StoreEntry& entry(uint64_t i) const { return entries_[size_t(i)]; }
+  bool read_blob(uint64_t i, std::vector<uint8_t>& blob) const;
   uint64_t stored_bytes() const { return stored_bytes_; }
   const std::string& partial_path() const { return partial_; }
 

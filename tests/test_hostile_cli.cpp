@@ -241,6 +241,8 @@ TEST_F(HostileCli, CompareChecksEveryFlagAndItsStoreBeforeAnyWork) {
       {" --page-budget 0", "--page-budget"},
       {" --width 0", "--width"},
       {" --level 0", "--level"},
+      {" --truth-pages 5000", "--truth-pages"},
+      {" --truth-max-mip 0", "--truth-max-mip"},
       {" --store " + path("missing.tvt"), "--store: " + path("missing.tvt") + ": file not found"},
       {" --store " + path("folder.tvt"), "--store: " + path("folder.tvt") + ": is a directory"},
       {" --store " + fifo, "--store: " + fifo + ": is a FIFO"},

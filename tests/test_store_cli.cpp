@@ -11,6 +11,7 @@
 
 #include "support/cli.h"
 #include "support/temp_dir.h"
+#include "streaming/page_store.h"
 
 namespace fs = std::filesystem;
 
@@ -64,8 +65,11 @@ TEST_F(StoreCli, ShardedBakeMergesToTheSingleBakeAndVerifyFindsACorruptPage) {
 
   ASSERT_EQ(run("verify " + path("merged.tvt")), 0) << output_;
   EXPECT_NE(output_.find("85 of 85 pages ok"), std::string::npos) << output_;
+  EXPECT_NE(output_.find("filtered pyramid: 21 coarse pages checked to be the box filter of the finer mip"), std::string::npos)
+      << output_;
   ASSERT_EQ(run("info --json " + path("merged.tvt")), 0) << output_;
   const auto info = nlohmann::json::parse(output_);
+  EXPECT_EQ(info["pyramid"], "filtered");  // the default
   EXPECT_EQ(info["pages"], 85);
   EXPECT_EQ(info["vt"]["log2_size"], 10);
   EXPECT_EQ(info["mips"].size(), 4u);
@@ -79,6 +83,69 @@ TEST_F(StoreCli, ShardedBakeMergesToTheSingleBakeAndVerifyFindsACorruptPage) {
   EXPECT_NE(output_.find("84 of 85 pages ok"), std::string::npos) << output_;
 }
 
+// --pyramid composed keeps the byte-identical bake of every mip; the filtered one differs from
+// it exactly in the coarse mips (level 0 is composed either way).
+TEST_F(StoreCli, ComposedPyramidDiffersFromTheFilteredOneOnlyAboveLevelZero) {
+  using namespace tvt;
+  ASSERT_EQ(run(bake_args(path("composed.tvt")) + " --pyramid composed"), 0) << output_;
+  EXPECT_NE(output_.find("composed pyramid"), std::string::npos) << output_;
+  ASSERT_EQ(run(bake_args(path("filtered.tvt"))), 0) << output_;
+  EXPECT_NE(output_.find("filtered pyramid: "), std::string::npos) << output_;
+  auto composed = PageStoreReader::open(path("composed.tvt"));
+  auto filtered = PageStoreReader::open(path("filtered.tvt"));
+  ASSERT_TRUE(composed.ok() && filtered.ok());
+  EXPECT_EQ(composed.value()->desc().pyramid, StorePyramid::composed);
+  EXPECT_EQ(filtered.value()->desc().pyramid, StorePyramid::filtered);
+  auto dc = composed.value()->make_decoder();
+  auto df = filtered.value()->make_decoder();
+  std::vector<uint8_t> a(composed.value()->page_bytes()), b(a.size());
+  int coarse_differ = 0;
+  for (const StoreEntry& e : composed.value()->entries()) {
+    ASSERT_EQ(composed.value()->read_page(e.page, a, *dc), PageError::none);
+    ASSERT_EQ(filtered.value()->read_page(e.page, b, *df), PageError::none);
+    if (e.page.mip == 0) EXPECT_EQ(a, b) << to_string(e.page);
+    else coarse_differ += a != b;
+  }
+  EXPECT_GT(coarse_differ, 0);
+  ASSERT_EQ(run("info " + path("composed.tvt")), 0) << output_;
+  EXPECT_NE(output_.find("composed pyramid"), std::string::npos) << output_;
+}
+
+// compare reports procedural pages against the filtered pyramid per mip: computed from level-0
+// pages next to its own (composed, identical) bake, or read from a filtered --store, whose
+// frames differ from the procedural ones by design (exit 0).
+TEST_F(StoreCli, CompareReportsTheErrorPerMipAgainstTheFilteredPyramid) {
+  const std::string compare = "compare --quiet --scene " + scene_ + " --frames 3 --every 1 --width 64 --height 36 "
+                              "--cache-slots 64 --page-budget 16 --truth-pages 1 --truth-max-mip 3 --out ";
+  ASSERT_EQ(run(compare + path("own")), 0) << output_;
+  EXPECT_NE(output_.find("images: IDENTICAL"), std::string::npos) << output_;
+  EXPECT_NE(output_.find("procedural pages vs the filtered pyramid"), std::string::npos) << output_;
+  std::ifstream own_json(path("own/compare.json"));
+  const auto own = nlohmann::json::parse(own_json);
+  ASSERT_TRUE(own.contains("error_vs_filtered")) << own.dump(2);
+  for (const auto& [mip, e] : own["error_vs_filtered"].items()) {
+    EXPECT_EQ(e["pages"], 1) << mip;
+    EXPECT_EQ(e["truth"], "computed") << mip;
+    // The 4^m level-0 pages under one page, less those a finer mip's page composed already.
+    EXPECT_GT(e["truth_level0_pages"].get<int>(), 0) << mip;
+    EXPECT_LE(e["truth_level0_pages"].get<int>(), 1 << (2 * std::stoi(mip))) << mip;
+    EXPECT_GT(e["psnr_db"].get<double>(), 5.0) << mip;
+    EXPECT_LT(e["psnr_db"].get<double>(), 99.0) << mip << ": direct composition is not the filtered truth";
+  }
+
+  ASSERT_EQ(run("bake --quiet --method fbpb+dpt2 --scene " + scene_ + " --out " + path("filtered.tvt")), 0) << output_;
+  ASSERT_EQ(run(compare + path("stored") + " --store " + path("filtered.tvt")), 0) << output_;
+  EXPECT_NE(output_.find("DIFFER (expected: the store holds the filtered pyramid)"), std::string::npos) << output_;
+  std::ifstream stored_json(path("stored/compare.json"));
+  const auto stored = nlohmann::json::parse(stored_json);
+  EXPECT_EQ(stored["store"]["pyramid"], "filtered");
+  ASSERT_TRUE(stored.contains("error_vs_filtered")) << stored.dump(2);
+  for (const auto& [mip, e] : stored["error_vs_filtered"].items()) {
+    EXPECT_EQ(e["truth"], "store") << mip;
+    EXPECT_GE(e["pages"].get<int>(), 1) << mip;
+  }
+}
+
 TEST_F(StoreCli, BadFlagsNameTheFieldAndWriteNothing) {
   const std::string out = path("out.tvt");
   const std::pair<std::string, std::string> cases[] = {
@@ -87,7 +154,9 @@ TEST_F(StoreCli, BadFlagsNameTheFieldAndWriteNothing) {
       {" --region 1,2,3", "--region"},     {" --region 0,0,0,16", "--region"},
       {" --mips 5", "--mips"},             {" --mips 7,9", "--mips"},
       {" --dict /no/such/dict", "--dict"}, {" --batch 0", "--batch"},
-      {" --method nope", "--method"},
+      {" --method nope", "--method"},      {" --pyramid box", "--pyramid"},
+      {" --pyramid composed --finer " + path("x.tvt"), "--finer"},
+      {" --finer /no/such/part.tvt", "--finer"},
   };
   for (const auto& [args, field] : cases) {
     EXPECT_EQ(run(bake_args(out) + args), 2) << args << ": " << output_;

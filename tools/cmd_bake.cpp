@@ -1,6 +1,8 @@
-// `terravt bake`: composes pages with the same compositor the VT uses and writes them to a
-// page store (zstd pages, per-page checksums; docs/page-store.md). Whole VT or a region and a
-// mip range; atomic (temp file + rename); an interrupted bake resumes when run again;
+// `terravt bake`: composes level-0 pages with the same compositor the VT uses and writes them
+// to a page store (zstd pages, per-page checksums; docs/page-store.md) with every coarser mip the
+// box filter of the mip below (`--pyramid filtered`, the default), or every page composed at its
+// own mip (`--pyramid composed`: byte-identical to what the VT composes). Whole VT or a region
+// and a mip range; atomic (temp file + rename); an interrupted bake resumes when run again;
 // `--shard i/n` bakes one deterministic part for `terravt merge`.
 #include <atomic>
 #include <chrono>
@@ -27,6 +29,8 @@ struct BakeArgs {
   std::string shard = "0/1";
   std::string dict = "none";     // none | auto | a dictionary file
   std::string save_dict;
+  std::string pyramid = "filtered";
+  std::vector<std::string> finer;  // stores holding pages of this filtered bake
   std::vector<int64_t> region;   // x, y, width, height in level-0 texels
   std::vector<uint32_t> mips;    // lo, hi
   uint32_t dict_kb = 110;
@@ -83,6 +87,12 @@ int run_bake(const BakeArgs& a) {
   if (!a.region.empty() && a.region.size() != 4) return fail(cmd, "--region: needs x,y,width,height in level-0 texels", 2);
   if (!a.mips.empty() && a.mips.size() != 2) return fail(cmd, "--mips: needs lo,hi", 2);
   if (a.batch < 1 || a.batch > 1024) return fail(cmd, "--batch: must be between 1 and 1024", 2);
+  if (a.pyramid != "filtered" && a.pyramid != "composed")
+    return fail(cmd, "--pyramid: must be filtered or composed, got '" + a.pyramid + "'", 2);
+  const StorePyramid pyramid = a.pyramid == "filtered" ? StorePyramid::filtered : StorePyramid::composed;
+  if (!a.finer.empty() && pyramid != StorePyramid::filtered) return fail(cmd, "--finer: only used with --pyramid filtered", 2);
+  for (const std::string& f : a.finer)
+    if (auto why = not_a_regular_file(f)) return fail(cmd, "--finer: " + *why, 2);
   uint32_t shard_index = 0, shard_count = 1;
   if (auto s = parse_shard(a.shard, shard_index, shard_count); !s) return fail(cmd, s.error().message, 2);
   // A finished store may have taken hours: it is replaced only when asked (an interrupted bake's
@@ -121,13 +131,14 @@ int run_bake(const BakeArgs& a) {
     region.mip_lo = a.mips[0];
     region.mip_hi = a.mips[1];
   }
-  auto plan = bake_plan(vt, region);
+  auto plan = bake_plan(vt, region, pyramid);
   if (!plan) return fail(cmd, "--region/--mips: " + plan.error().message, 2);
   const ShardRange part = shard_range(plan->size(), shard_index, shard_count);
 
   auto producers = PageProducers::create(assets.value(), *method, a.cpu, a.gpu_name);
   if (!producers) return fail(cmd, producers.error().message, 1);
   StoreDesc desc = producers.value()->store_desc(a.level);
+  desc.pyramid = pyramid;
   PageSource source = producers.value()->source();
 
   const auto t0 = std::chrono::steady_clock::now();
@@ -151,8 +162,8 @@ int run_bake(const BakeArgs& a) {
       return fail(cmd, "--save-dict: " + w.error().message, 1);
   }
 
-  std::printf("terravt bake: %s, V = 2^%u, %s, %zu pages in the plan, shard %u/%u = %llu pages, zstd %d%s, %s\n",
-              assets->desc.source_path.c_str(), vt.log2_size, a.method.c_str(), plan->size(), shard_index, shard_count,
+  std::printf("terravt bake: %s, V = 2^%u, %s, %s pyramid, %zu pages in the plan, shard %u/%u = %llu pages, zstd %d%s, %s\n",
+              assets->desc.source_path.c_str(), vt.log2_size, a.method.c_str(), a.pyramid.c_str(), plan->size(), shard_index, shard_count,
               (unsigned long long)part.count, a.level, desc.dictionary.empty() ? "" : " + dictionary",
               producers.value()->device_name().c_str());
 
@@ -162,6 +173,7 @@ int run_bake(const BakeArgs& a) {
   bo.resume = !a.restart;
   bo.shard_index = shard_index;
   bo.shard_count = shard_count;
+  bo.finer = a.finer;
   bo.cancelled = [] { return g_interrupted.load(); };
   bo.progress = [&](const BakeProgress& p) {
     if (a.quiet) return;
@@ -183,6 +195,9 @@ int run_bake(const BakeArgs& a) {
               (unsigned long long)s.pages, (unsigned long long)s.resumed_pages, s.seconds, double(s.raw_bytes) / 1e6,
               double(s.stored_bytes) / 1e6, s.stored_bytes ? double(s.raw_bytes) / double(s.stored_bytes) : 0.0,
               double(s.file_bytes) / 1e6, s.seconds > 0 ? double(s.pages - s.resumed_pages) / s.seconds : 0.0);
+  if (pyramid == StorePyramid::filtered)
+    std::printf("filtered pyramid: %llu finer pages read back, %llu level-0 pages composed that the store does not hold\n",
+                (unsigned long long)s.read_back, (unsigned long long)s.extra_composed);
   std::printf("wrote %s\n", a.out.c_str());
   return 0;
 }
@@ -195,6 +210,15 @@ const CommandRegistrar k_register{
       app.add_option("--method", a->method, "Transition method")->capture_default_str();
       app.add_option("--region", a->region, "x,y,width,height in level-0 texels (default: whole VT)")->delimiter(',');
       app.add_option("--mips", a->mips, "lo,hi: mip range (default: all)")->delimiter(',');
+      app.add_option("--pyramid", a->pyramid,
+                     "filtered: level 0 composed, every coarser mip the box filter of the one below (what a "
+                     "megatexture should hold); composed: every mip composed directly, byte-identical to what the VT "
+                     "composes (docs/page-store.md)")
+          ->capture_default_str();
+      app.add_option("--finer", a->finer,
+                     "Filtered bakes: stores holding pages of this same bake (finished shards) to filter from instead "
+                     "of composing them again")
+          ->delimiter(',');
       app.add_option("--level", a->level, "zstd level (-5..-1, 1..19)")->capture_default_str();
       app.add_option("--dict", a->dict, "zstd dictionary: none, auto (trained on sample pages) or a file")->capture_default_str();
       app.add_option("--dict-kb", a->dict_kb, "Size of a trained dictionary in KiB")->check(CLI::Range(1, 4096))->capture_default_str();

@@ -4,7 +4,10 @@
 // waiting for every frame's loads, to prove the images identical; once asynchronous, as an
 // engine would), and reports pages/s, ms per page, disk bytes, GPU memory, frame times, image
 // difference, and the disk size of a full stored set at larger V, extrapolated from the bytes
-// per page measured per mip. Writes a JSON report, an SVG plot and a table.
+// per page measured per mip, and the image error of procedural pages per mip against the
+// filtered pyramid (level 0 box-filtered up: what a baked megatexture should hold; taken from
+// a filtered --store, else computed for a few pages per mip). Writes a JSON report, an SVG plot
+// and a table.
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -21,6 +24,7 @@
 #include "render/flythrough.h"
 #include "streaming/bake.h"
 #include "streaming/page_store.h"
+#include "streaming/pyramid.h"
 #include "tools/cli_common.h"
 #include "tools/commands.h"
 #include "tools/page_producers.h"
@@ -44,8 +48,74 @@ struct CompareArgs {
   uint32_t loader_threads = 2;
   uint32_t staging = 64;
   int level = 3;
+  uint32_t truth_pages = 2;    // computed truth: pages per mip
+  uint32_t truth_max_mip = 3;  // computed truth: mips 1..this (a mip-m page composes 4^m level-0 pages)
   bool quiet = false;
 };
+
+// Procedural pages against the filtered pyramid, one mip.
+struct MipError {
+  uint64_t pages = 0, texels = 0, level0_pages = 0;
+  double squared_error = 0;  // summed over RGB of every payload texel
+  uint32_t max_abs = 0;
+  double seconds = 0;        // making the truth
+  const char* truth = "";    // "store" or "computed"
+  double psnr_db() const {
+    if (squared_error == 0) return 99.0;
+    return 10.0 * std::log10(255.0 * 255.0 / (squared_error / double(3 * texels)));
+  }
+};
+
+// Per mip >= 1 of the pages the run used: the procedural pages (composed at their mip, as the VT
+// shows them) against the filtered pyramid's payload texels. The truth is the store's page when
+// the store holds the filtered pyramid (every page of the run it holds), else computed from
+// level-0 pages (streaming/pyramid.h) for the first `truth_pages` pages of mips up to
+// `truth_max_mip`.
+Result<std::map<uint32_t, MipError>> error_vs_filtered(const std::set<PageId>& run_pages, const PageStoreReader& store,
+                                                       PageProducers& producers, const CompareArgs& a) {
+  const VtConfig& vt = store.desc().vt;
+  const bool stored_truth = store.desc().pyramid == StorePyramid::filtered;
+  PageSource compose = producers.source();
+  FilteredPyramid pyramid(producers.store_desc(a.level), compose, PageLookup{}, FilteredPyramid::Options{});
+  auto decoder = store.make_decoder();
+  std::map<uint32_t, MipError> out;
+  for (const PageId& page : run_pages) {
+    if (page.mip == 0) continue;  // level 0 is the composition itself
+    MipError& e = out[page.mip];
+    std::vector<uint8_t> truth;
+    const auto t0 = std::chrono::steady_clock::now();
+    if (stored_truth) {
+      if (!store.contains(page)) continue;
+      std::vector<uint8_t> full(store.page_bytes());
+      std::string message;
+      if (store.read_page(page, full, *decoder, &message) != PageError::none) return make_error(message);
+      truth = page_payload(vt, full);
+      e.truth = "store";
+    } else {
+      if (page.mip > a.truth_max_mip || e.pages >= a.truth_pages) continue;
+      const uint64_t before = pyramid.composed_pages();
+      auto t = pyramid.payload(page);
+      if (!t) return t.error();
+      truth = std::move(t.value());
+      e.level0_pages += pyramid.composed_pages() - before;
+      e.truth = "computed";
+    }
+    e.seconds += seconds_since(t0);
+    std::vector<std::vector<uint8_t>> composed;
+    if (auto s = compose(std::span(&page, 1), composed); !s) return s.error();
+    const std::vector<uint8_t> procedural = page_payload(vt, composed[0]);
+    for (size_t i = 0; i < procedural.size(); ++i) {
+      if (i % 4 == 3) continue;  // RGB: alpha holds height
+      const int d = int(procedural[i]) - int(truth[i]);
+      e.squared_error += double(d * d);
+      e.max_abs = std::max(e.max_abs, uint32_t(std::abs(d)));
+    }
+    e.texels += procedural.size() / 4;
+    ++e.pages;
+  }
+  std::erase_if(out, [](const auto& kv) { return kv.second.pages == 0; });
+  return out;
+}
 
 struct RunResult {
   FlythroughSummary summary;
@@ -273,7 +343,10 @@ int run_compare(const CompareArgs& a) {
   for (const StoreEntry& e : store->entries()) read_ok += store->read_page(e.page, page, *decoder) == PageError::none ? 1 : 0;
   const double read_ms = store->entries().empty() ? 0 : 1000.0 * seconds_since(t1) / double(store->entries().size());
 
-  // 5. Images.
+  // 5. Images; procedural pages against the filtered pyramid, per mip.
+  auto mip_error = error_vs_filtered(proc->pages, *store, *producers.value(), a);
+  if (!mip_error) return fail(cmd, mip_error.error().message, 1);
+  const bool filtered_store = store->desc().pyramid == StorePyramid::filtered;
   double worst_psnr = std::numeric_limits<double>::infinity();
   uint32_t worst_abs = 0;
   for (size_t i = 0; i < proc->images.size() && i < exact->images.size(); ++i) {
@@ -329,7 +402,12 @@ int run_compare(const CompareArgs& a) {
                  {"identical", worst_abs == 0},
                  {"worst_psnr_db", std::isinf(worst_psnr) ? 99.0 : worst_psnr},
                  {"max_abs_diff", worst_abs}};
-  j["store"] = {{"path", store_path}, {"file_bytes", store->file_bytes()}, {"pages", store->entries().size()},
+  for (const auto& [m, e] : mip_error.value())
+    j["error_vs_filtered"][std::to_string(m)] = {{"pages", e.pages}, {"psnr_db", e.psnr_db()}, {"max_abs_diff", e.max_abs},
+                                                 {"truth", e.truth}, {"truth_level0_pages", e.level0_pages},
+                                                 {"truth_seconds", e.seconds}};
+  j["store"] = {{"path", store_path}, {"pyramid", std::string(to_string(store->desc().pyramid))},
+                {"file_bytes", store->file_bytes()}, {"pages", store->entries().size()},
                 {"bake_seconds", bake_s}, {"read_ok", read_ok}};
   j["inputs"] = {{"file_bytes", input_files}, {"packed_bytes", input_packed}};
   std::vector<std::pair<uint32_t, double>> curve;
@@ -363,15 +441,21 @@ int run_compare(const CompareArgs& a) {
   row("stored (async)", async.value(), read_ms);
   std::printf("\nms/page: GPU composition of a %zu-page batch vs read + verify + decode on one thread\n", sample.size());
   std::printf("images: %s (worst PSNR %s, max difference %u/255 over %zu frames)\n",
-              worst_abs == 0 ? "IDENTICAL" : "DIFFER", std::isinf(worst_psnr) ? "inf" : std::to_string(worst_psnr).c_str(),
+              worst_abs == 0 ? "IDENTICAL" : filtered_store ? "DIFFER (expected: the store holds the filtered pyramid)" : "DIFFER", std::isinf(worst_psnr) ? "inf" : std::to_string(worst_psnr).c_str(),
               worst_abs, std::min(proc->images.size(), exact->images.size()));
   std::printf("disk: store %.2f MB for %zu pages; procedural inputs %.1f KB of files (%.1f MB as packed texels)\n",
               double(store->file_bytes()) / 1e6, store->entries().size(), double(input_files) / 1e3, double(input_packed) / 1e6);
+  std::printf("\nprocedural pages vs the filtered pyramid (payload RGB; truth from %s):\n%4s %6s %10s %8s %14s\n",
+              filtered_store ? "the store" : "level-0 pages, box-filtered", "mip", "pages", "PSNR dB", "max abs",
+              "truth s/page");
+  for (const auto& [m, e] : mip_error.value())
+    std::printf("%4u %6llu %10.2f %8u %14.2f\n", m, (unsigned long long)e.pages, e.psnr_db(), e.max_abs,
+                e.seconds / double(e.pages));
   std::printf("\n%-8s %16s %18s %18s\n", "V", "stored set", "files / stored", "packed / stored");
   for (const auto& [v, b] : curve)
     std::printf("2^%-6u %13.3g B %18.3g %18.3g\n", v, b, double(input_files) / b, double(input_packed) / b);
   std::printf("\nwrote %s and %s\n", report.c_str(), plot.c_str());
-  return worst_abs == 0 ? 0 : 1;
+  return worst_abs == 0 || filtered_store ? 0 : 1;
 }
 
 const CommandRegistrar k_register{
@@ -393,6 +477,12 @@ const CommandRegistrar k_register{
       app.add_option("--loader-threads", a->loader_threads, "Store reader/decoder threads")->capture_default_str();
       app.add_option("--staging", a->staging, "Stored pages staged at once")->capture_default_str();
       app.add_option("--level", a->level, "zstd level of the baked store")->capture_default_str();
+      app.add_option("--truth-pages", a->truth_pages,
+                     "Error vs the filtered pyramid without a filtered --store: pages per mip whose truth is computed")
+          ->check(CLI::Range(0, 1000))->capture_default_str();
+      app.add_option("--truth-max-mip", a->truth_max_mip,
+                     "... and the coarsest such mip (a mip-m page composes the 4^m level-0 pages under it)")
+          ->check(CLI::Range(1, 12))->capture_default_str();
       app.add_option("--gpu", a->gpu_name, "Vulkan device name substring or index");
       app.add_flag("--quiet", a->quiet, "No progress lines");
       return [a] { return run_compare(*a); };

@@ -55,6 +55,9 @@ int run_verify(const VerifyArgs& a) {
   const VerifyReport& v = r.value();
   for (size_t i = 0; i < v.problems.size() && i < a.max_lines; ++i) std::printf("%s\n", v.problems[i].c_str());
   if (v.problems.size() > a.max_lines) std::printf("... and %zu more problems\n", v.problems.size() - a.max_lines);
+  if (v.pyramid == StorePyramid::filtered)
+    std::printf("%s: filtered pyramid: %llu coarse pages checked to be the box filter of the finer mip\n", a.store.c_str(),
+                (unsigned long long)v.filter_checked);
   std::printf("%s: %llu of %llu pages ok, %zu problems\n", a.store.c_str(), (unsigned long long)v.ok,
               (unsigned long long)v.pages, v.problems.size());
   if (a.salvage.empty()) {
@@ -116,6 +119,7 @@ int run_info(const InfoArgs& a) {
     j["producer"] = d.producer;
     j["scene_hash"] = d.scene_hash;
     j["zstd_level"] = d.zstd_level;
+    j["pyramid"] = std::string(to_string(d.pyramid));
     j["dictionary_bytes"] = d.dictionary.size();
     j["pages"] = r.entries().size();
     j["raw_bytes"] = raw;
@@ -130,8 +134,8 @@ int run_info(const InfoArgs& a) {
   std::printf("%s: %.2f MB\n", a.store.c_str(), double(r.file_bytes()) / 1e6);
   std::printf("  VT: V = 2^%u texels, pages %u + 2x%u border (%llu bytes raw), %u mips\n", d.vt.log2_size,
               d.vt.page_texels, d.vt.border_texels, (unsigned long long)d.page_bytes(), d.vt.mip_count());
-  std::printf("  producer: %s, scene %016llx, zstd level %d, dictionary %zu bytes\n", d.producer.c_str(),
-              (unsigned long long)d.scene_hash, d.zstd_level, d.dictionary.size());
+  std::printf("  producer: %s, scene %016llx, %s pyramid, zstd level %d, dictionary %zu bytes\n", d.producer.c_str(),
+              (unsigned long long)d.scene_hash, std::string(to_string(d.pyramid)).c_str(), d.zstd_level, d.dictionary.size());
   std::printf("  %zu pages, %.2f MB raw -> %.2f MB stored (ratio %.2f)\n", r.entries().size(), double(raw) / 1e6,
               double(stored) / 1e6, stored ? double(raw) / double(stored) : 0.0);
   std::printf("  %-4s %10s %12s %10s %10s %10s\n", "mip", "pages", "of the mip", "KB/page", "min KB", "max KB");
