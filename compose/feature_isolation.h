@@ -4,22 +4,28 @@
 // Automatic isolation, each step on the torus (the texture tiles, so a feature cut by the
 // edge is one feature):
 //  1. channel: the height (A) if it varies, else the luminance; smoothed by a wrap-around
-//     Gaussian (smooth_sigma texels) so photo grain does not break features into specks;
+//     Gaussian (smooth_sigma texels) so photo grain does not break features into specks, and
+//     optionally taken relative to a wider Gaussian (background_sigma: removes shading);
 //  2. threshold: Otsu's level, or the one given;
 //  3. polarity: features are the compact, separated side, the background the connected
 //     network (mortar, grout, soil between stones), whichever side is lighter. The side whose
 //     largest 4-connected component holds the larger share of that side's texels is the
 //     network;
-//  4. pin-holes: background components enclosed by the features and smaller than a quarter of
-//     the typical feature are filled;
+//  4. pin-holes: background components other than the network and smaller than 1/16 of the
+//     typical feature are filled;
 //  5. split: features touching through thin gaps or one-texel bridges are separated by a
 //     distance transform and a marker-based watershed (OpenCV cv::distanceTransform,
-//     cv::connectedComponents, cv::watershed), run on the texture padded periodically and
-//     joined back across its edges;
+//     cv::connectedComponents, cv::watershed; markers: where the distance is at least half of
+//     the component's peak, or of the typical peak if lower), run on the texture padded
+//     periodically and joined back across its edges;
 //  6. specks: components smaller than min_feature_texels, or than speck_fraction of the
 //     typical feature, are dropped.
 // "Typical feature" is the area-weighted median component: the size of the component holding
 // the median feature texel, which specks do not drag down.
+//
+// Limits: the threshold is global. Photographs whose features span the background's
+// brightness (shaded stones, light and dark halves) are not segmented reliably; see
+// docs/metatex.md, "On real photographs". Use a hand-made mask for them.
 //
 // Thread-safety: pure functions.
 #pragma once
