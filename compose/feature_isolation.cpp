@@ -268,7 +268,7 @@ std::vector<int32_t> split_touching(const std::vector<uint8_t>& mask, const std:
       const int c = components.at<int32_t>(y, x);
       if (c > 0) peak[size_t(c)] = std::max(peak[size_t(c)], distance.at<float>(y, x));
     }
-  // A core is where the distance exceeds half of its component's peak, or half of the typical
+  // A core is where the distance is at least 0.4 of its component's peak, or of the typical
   // peak if that is lower: in two features merged through a gap, the smaller one keeps a core
   // of its own (its peak may be below half the larger one's), while the gap, narrower than
   // either, has none.
@@ -286,7 +286,7 @@ std::vector<int32_t> split_touching(const std::vector<uint8_t>& mask, const std:
       typical_peak = p;
       break;
     }
-  constexpr float core_fraction = 0.5f;
+  constexpr float core_fraction = 0.4f;
   cv::Mat cores(side, side, CV_8UC1, cv::Scalar(0));
   for (int y = 0; y < side; ++y)
     for (int x = 0; x < side; ++x) {

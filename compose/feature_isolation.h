@@ -15,7 +15,7 @@
 //     typical feature are filled;
 //  5. split: features touching through thin gaps or one-texel bridges are separated by a
 //     distance transform and a marker-based watershed (OpenCV cv::distanceTransform,
-//     cv::connectedComponents, cv::watershed; markers: where the distance is at least half of
+//     cv::connectedComponents, cv::watershed; markers: where the distance is at least 0.4 of
 //     the component's peak, or of the typical peak if lower), run on the texture padded
 //     periodically and joined back across its edges;
 //  6. specks: components smaller than min_feature_texels, or than speck_fraction of the
