@@ -21,7 +21,7 @@ struct NamedFloatImage {
 };
 
 // Largest accepted width or height of any image file, texels.
-inline constexpr int k_max_image_side = 32768;
+inline constexpr int k_max_image_side = 16384;
 
 Result<NamedFloatImage> read_named_float_image(const std::string& path);
 

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 
+#include "compose/material_image.h"
 #include "compose/procedural.h"
 #include "shaders/shared/hash.h"
 
@@ -12,33 +13,25 @@ namespace tvt {
 
 namespace {
 
-double clamp01(double v) { return std::isfinite(v) ? std::clamp(v, 0.0, 1.0) : 0.0; }
-
 std::string material_ptr(size_t index, const char* what) {
   return "/materials/" + std::to_string(index) + "/" + what;
 }
 
-ImageGray8 noise_gray(uint32_t resolution, uint32_t seed) {
-  const auto grid = fbm_grid(resolution, seed, 5, 4.0, 0.55, 2.0);
-  ImageGray8 out{int(resolution), int(resolution)};
-  for (size_t i = 0; i < grid.size(); ++i) out.texels[i] = uint8_t(std::lround(clamp01(grid[i]) * 255.0));
-  return out;
-}
 
 std::string size_text(int w, int h) { return std::to_string(w) + "x" + std::to_string(h); }
 
-Status check_albedo_size(const SceneDesc& d, size_t index, int width, int height) {
-  if (width != height || !std::has_single_bit(unsigned(width)) || width > 4096)
-    return make_error(scene_field(d, material_ptr(index, "albedo/image")) + ": " + d.materials[index].albedo.image_path +
-                      ": must be square with a power-of-two size up to 4096, got " + size_text(width, height));
-  return Ok{};
+MaterialImageOptions image_options(const MaterialDesc& m) {
+  MaterialImageOptions o;
+  o.height = m.albedo.height_source;
+  o.height_path = m.albedo.height_path;
+  o.invert_height = m.albedo.height_invert;
+  o.resolution = int(m.albedo.image_resolution);
+  return o;
 }
 
-Status check_height_size(const SceneDesc& d, size_t index, int width, int height, int albedo) {
-  if (width != albedo || height != albedo)
-    return make_error(scene_field(d, material_ptr(index, "albedo/height")) + ": " + d.materials[index].albedo.height_path +
-                      ": size " + size_text(width, height) + " differs from the albedo's " + size_text(albedo, albedo));
-  return Ok{};
+// The field an image error belongs to: the albedo image or its separate height image.
+std::string image_field(const SceneDesc& d, size_t index, bool height_failed) {
+  return scene_field(d, material_ptr(index, height_failed ? "albedo/height" : "albedo/image"));
 }
 
 Status check_meta_size(const SceneDesc& d, size_t index, int resolution, int albedo) {
@@ -49,10 +42,13 @@ Status check_meta_size(const SceneDesc& d, size_t index, int resolution, int alb
   return Ok{};
 }
 
-Status check_mask_size(const SceneDesc& d, size_t index, int width, int height, int albedo) {
-  if (width != albedo || height != albedo)
+// Masks are drawn on the albedo image as given, so they must have its size; they are
+// resampled with it (nearest texel, a mask is binary).
+Status check_mask_size(const SceneDesc& d, size_t index, int width, int height, int albedo_w, int albedo_h) {
+  if (width != albedo_w || height != albedo_h)
     return make_error(scene_field(d, material_ptr(index, "fbpb/mask")) + ": " + d.materials[index].fbpb.mask_path +
-                      ": size differs from the albedo's");
+                      ": size " + size_text(width, height) + " differs from the albedo image's " +
+                      size_text(albedo_w, albedo_h));
   return Ok{};
 }
 
@@ -66,18 +62,32 @@ Result<ImageHeader> header(const SceneDesc& d, const std::string& pointer, const
 // What open() checks of material `index` without reading texels; fills `info`.
 Status check_headers(const SceneDesc& d, size_t index, MaterialInfo& info) {
   const MaterialDesc& m = d.materials[index];
+  int albedo_w = 0, albedo_h = 0;
   if (m.albedo.image_path.empty()) {
     info.resolution = int(m.albedo.resolution);  // the generator validates it on first use
   } else {
-    auto h = header(d, material_ptr(index, "albedo/image"), m.albedo.image_path);
-    if (!h) return h.error();
-    if (auto s = check_albedo_size(d, index, h->width, h->height); !s) return s;
-    info.resolution = h->width;
-    if (!m.albedo.height_path.empty()) {
-      auto hh = header(d, material_ptr(index, "albedo/height"), m.albedo.height_path);
-      if (!hh) return hh.error();
-      if (auto s = check_height_size(d, index, hh->width, hh->height, info.resolution); !s) return s;
-    }
+    bool height_failed = false;
+    auto r = material_image_resolution(m.albedo.image_path, image_options(m), &height_failed);
+    if (!r) return make_error(image_field(d, index, height_failed) + ": " + r.error().message);
+    info.resolution = r.value();
+    auto h = read_image_header(m.albedo.image_path);
+    if (!h) return make_error(image_field(d, index, false) + ": " + h.error().message);
+    albedo_w = h->width;
+    albedo_h = h->height;
+    const MaterialImageOptions o = image_options(m);
+    HeightSource source = o.height;
+    if (source == HeightSource::Auto)
+      source = !o.height_path.empty() ? HeightSource::File
+               : (h->channels == 2 || h->channels >= 4) ? HeightSource::Alpha
+                                                        : HeightSource::Luminance;
+    info.image_note = m.albedo.image_path + ": " + size_text(albedo_w, albedo_h) + ", " + std::to_string(h->channels) +
+                      " channel(s), " +
+                      (albedo_w == info.resolution && albedo_h == info.resolution
+                           ? "used as it is"
+                           : "resampled to " + size_text(info.resolution, info.resolution) + " (Lanczos-3, wrap)") +
+                      ", height from " + std::string(to_string(source)) +
+                      (source == HeightSource::Alpha && o.height == HeightSource::Auto ? " (luminance if constant)" : "") +
+                      (source == HeightSource::Luminance && o.invert_height ? " (inverted)" : "");
   }
   info.mip_count = std::countr_zero(unsigned(std::max(info.resolution, 1))) + 1;
   info.meta = m.has_fbpb;
@@ -88,12 +98,16 @@ Status check_headers(const SceneDesc& d, size_t index, MaterialInfo& info) {
   } else if (m.has_fbpb && !m.fbpb.mask_path.empty()) {
     auto h = header(d, material_ptr(index, "fbpb/mask"), m.fbpb.mask_path);
     if (!h) return h.error();
-    if (auto s = check_mask_size(d, index, h->width, h->height, info.resolution); !s) return s;
+    if (auto s = check_mask_size(d, index, h->width, h->height, albedo_w ? albedo_w : info.resolution,
+                                 albedo_h ? albedo_h : info.resolution);
+        !s)
+      return s;
   }
   return Ok{};
 }
 
-Result<ImageRGBA8> load_albedo(const SceneDesc& d, size_t index, GeneratedMaterial* generated) {
+Result<ImageRGBA8> load_albedo(const SceneDesc& d, size_t index, GeneratedMaterial* generated,
+                               MaterialImageReport* report) {
   const MaterialDesc& m = d.materials[index];
   if (m.albedo.image_path.empty()) {
     const uint32_t seed = m.albedo.seed ? m.albedo.seed : derived_asset_seed(d.seed, uint32_t(index), 1);
@@ -102,23 +116,15 @@ Result<ImageRGBA8> load_albedo(const SceneDesc& d, size_t index, GeneratedMateri
     *generated = std::move(g.value());
     return generated->albedo;
   }
-  auto img = read_image_rgba8(m.albedo.image_path);
-  if (!img) return make_error(scene_field(d, material_ptr(index, "albedo/image")) + ": " + img.error().message);
-  ImageRGBA8 albedo = std::move(img.value());
-  if (auto s = check_albedo_size(d, index, albedo.width, albedo.height); !s) return s.error();
-  if (!m.albedo.height_path.empty()) {
-    auto h = read_image_float(m.albedo.height_path);
-    if (!h) return make_error(scene_field(d, material_ptr(index, "albedo/height")) + ": " + h.error().message);
-    if (auto s = check_height_size(d, index, h->width, h->height, albedo.width); !s) return s.error();
-    for (int y = 0; y < albedo.height; ++y)
-      for (int x = 0; x < albedo.width; ++x)
-        albedo.at(x, y)[3] = uint8_t(std::lround(clamp01(h->at(x, y, 0)) * 255.0));
-  }
-  return albedo;
+  bool height_failed = false;
+  auto img = load_material_image(m.albedo.image_path, image_options(m), &height_failed);
+  if (!img) return make_error(image_field(d, index, height_failed) + ": " + img.error().message);
+  *report = std::move(img->report);
+  return std::move(img->image);
 }
 
 Result<std::optional<MetaTexture>> load_meta(const SceneDesc& d, size_t index, const ImageRGBA8& albedo,
-                                             const GeneratedMaterial& generated) {
+                                             const GeneratedMaterial& generated, const MaterialImageReport& image) {
   const MaterialDesc& m = d.materials[index];
   if (!m.has_fbpb) return std::optional<MetaTexture>{};
   const uint32_t res = uint32_t(albedo.width);
@@ -130,22 +136,26 @@ Result<std::optional<MetaTexture>> load_meta(const SceneDesc& d, size_t index, c
   }
   const ImageGray8 variation = generated.variation.width == int(res)
                                    ? generated.variation
-                                   : noise_gray(res, derived_asset_seed(d.seed, uint32_t(index), 2));
+                                   : variation_noise(res, m.albedo.image_path.empty()
+                                                              ? derived_asset_seed(d.seed, uint32_t(index), 2)
+                                                              : k_image_variation_seed);
   FeatureLabels labels;
   if (!m.fbpb.mask_path.empty()) {
     auto mask = read_image_rgba8(m.fbpb.mask_path);
     if (!mask) return make_error(scene_field(d, material_ptr(index, "fbpb/mask")) + ": " + mask.error().message);
-    if (auto s = check_mask_size(d, index, mask->width, mask->height, albedo.width); !s) return s.error();
-    ImageGray8 gray(mask->width, mask->height);
-    for (int y = 0; y < gray.height; ++y)
-      for (int x = 0; x < gray.width; ++x) gray.at(x, y) = mask->at(x, y)[0];
+    const bool from_image = image.source_width > 0;  // else a generator made the albedo at its size
+    if (auto s = check_mask_size(d, index, mask->width, mask->height, from_image ? image.source_width : albedo.width,
+                                 from_image ? image.source_height : albedo.height);
+        !s)
+      return s.error();
+    const ImageGray8 gray = resample_mask_nearest(*mask, albedo.width);
     labels = labels_from_mask(gray, 8);
   } else if (!generated.feature_labels.empty()) {
     labels.resolution = int(res);
     labels.labels = generated.feature_labels;
     labels.count = generated.feature_count;
   } else {
-    labels = isolate_features(albedo, IsolationOptions{});
+    labels = isolate_features(albedo, IsolationOptions{});  // the defaults of `terravt metatex`
   }
   return std::optional<MetaTexture>(build_meta_texture(labels, variation, 2.0));
 }
@@ -219,13 +229,14 @@ void MaterialSource::push_back(MaterialAssets assets) {
 Result<MaterialAssets> MaterialSource::produce(size_t n) const {
   const SceneDesc& d = *desc_;
   GeneratedMaterial generated;
-  auto albedo = load_albedo(d, n, &generated);
+  MaterialImageReport image;
+  auto albedo = load_albedo(d, n, &generated, &image);
   if (!albedo) return albedo.error();
   // The header promised this size; a file replaced since scene load must not change the layout.
   if (albedo->width != slots_[n]->info.resolution)
     return make_error(scene_field(d, material_ptr(n, "albedo")) + ": size changed since the scene was loaded (" +
                       std::to_string(albedo->width) + " instead of " + std::to_string(slots_[n]->info.resolution) + ")");
-  auto meta = load_meta(d, n, albedo.value(), generated);
+  auto meta = load_meta(d, n, albedo.value(), generated, image);
   if (!meta) return meta.error();
   MaterialAssets m;
   m.albedo = build_mip_chain(albedo.value());

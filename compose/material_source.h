@@ -60,6 +60,9 @@ struct MaterialInfo {
   // materials: at once); until then a meta-texture counts as a promise of features.
   bool features_known = false;
   uint32_t feature_count = 0;    // meaningful when features_known
+  // Image materials: what the loader does with the file, from its header, e.g.
+  // "wall.jpg: 100x100, 3 channels, resampled to 128x128 (Lanczos-3, wrap), height from luminance".
+  std::string image_note;
 };
 
 struct MaterialLoadStats {
@@ -71,8 +74,9 @@ struct MaterialLoadStats {
 
 class MaterialSource {
  public:
-  // Checks every material's files by their headers: existence, format, square power-of-two
-  // albedo up to 4096, matching height/mask/meta sizes. Errors name the scene file, the field
+  // Checks every material's files by their headers: existence, format, size (any size up to
+  // 16384 per side; resampled to a power-of-two square, compose/material_image.h), mask and
+  // meta sizes. Errors name the scene file, the field
   // (e.g. /materials/2/albedo/image) and the image file, as the eager loader did.
   static Result<std::shared_ptr<MaterialSource>> open(const SceneDesc& desc);
   // Materials already in memory (synthetic scenes, tests): nothing to load.

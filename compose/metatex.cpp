@@ -52,140 +52,6 @@ int minimal_image(int64_t v, int r) {
 constexpr int k_step_x[4] = {1, -1, 0, 0};
 constexpr int k_step_y[4] = {0, 0, 1, -1};
 
-// Connected components of the non-zero texels of `mask` (4-connected on the torus). Labels are
-// numbered in row-major order of each component's first texel.
-std::vector<int32_t> label_components(const std::vector<uint8_t>& mask, int r, uint32_t& count) {
-  std::vector<int32_t> labels(mask.size(), k_background);
-  std::vector<size_t> queue;
-  count = 0;
-  for (size_t seed = 0; seed < mask.size(); ++seed) {
-    if (!mask[seed] || labels[seed] != k_background) continue;
-    const int32_t id = int32_t(count++);
-    labels[seed] = id;
-    queue.assign(1, seed);
-    for (size_t head = 0; head < queue.size(); ++head) {
-      const int x = int(queue[head] % size_t(r));
-      const int y = int(queue[head] / size_t(r));
-      for (int s = 0; s < 4; ++s) {
-        const size_t n = texel_index(wrap(x + k_step_x[s], r), wrap(y + k_step_y[s], r), r);
-        if (mask[n] && labels[n] == k_background) {
-          labels[n] = id;
-          queue.push_back(n);
-        }
-      }
-    }
-  }
-  return labels;
-}
-
-// Drops labels with fewer than `min_texels` texels and renumbers the rest 0..count-1 in
-// row-major order of their first texel.
-FeatureLabels compact_labels(std::vector<int32_t> labels, uint32_t count, int r, uint32_t min_texels) {
-  std::vector<uint32_t> sizes(count, 0);
-  for (int32_t label : labels)
-    if (label >= 0) ++sizes[size_t(label)];
-  std::vector<int32_t> renumber(count, k_background);
-  FeatureLabels result;
-  result.resolution = r;
-  for (int32_t& label : labels) {
-    if (label < 0) continue;
-    const size_t old = size_t(label);
-    if (sizes[old] < min_texels) {
-      label = k_background;
-      continue;
-    }
-    if (renumber[old] == k_background) renumber[old] = int32_t(result.count++);
-    label = renumber[old];
-  }
-  result.labels = std::move(labels);
-  return result;
-}
-
-// 8-neighbourhood, for erosion and growing back: a (2e+1)^2 square structuring element, so
-// that eroding and growing a square feature by e texels gives back the same square.
-constexpr int k_ring_x[8] = {1, 1, 0, -1, -1, -1, 0, 1};
-constexpr int k_ring_y[8] = {0, 1, 1, 1, 0, -1, -1, -1};
-
-// Erosion on the torus by a (2·steps+1)^2 square: one 3x3 step, `steps` times.
-std::vector<uint8_t> erode(std::vector<uint8_t> mask, int r, uint32_t steps) {
-  std::vector<uint8_t> next(mask.size());
-  for (uint32_t step = 0; step < steps; ++step) {
-    for (int y = 0; y < r; ++y)
-      for (int x = 0; x < r; ++x) {
-        bool keep = mask[texel_index(x, y, r)] != 0;
-        for (int s = 0; s < 8 && keep; ++s)
-          keep = mask[texel_index(wrap(x + k_ring_x[s], r), wrap(y + k_ring_y[s], r), r)] != 0;
-        next[texel_index(x, y, r)] = keep ? 1 : 0;
-      }
-    mask.swap(next);
-  }
-  return mask;
-}
-
-// Grows labels back into the un-eroded mask: every mask texel within `steps` 8-connected steps
-// (walking inside the mask) of a labelled texel takes the label of the nearest one (ties: first
-// reached, sources in row-major order). Mask texels farther away stay background, so parts
-// the erosion removed entirely (thin bridges, specks) are not brought back.
-void grow_into_mask(std::vector<int32_t>& labels, const std::vector<uint8_t>& mask, int r, uint32_t steps) {
-  std::vector<size_t> frontier;
-  for (size_t i = 0; i < labels.size(); ++i)
-    if (labels[i] >= 0) frontier.push_back(i);
-  std::vector<size_t> next;
-  for (uint32_t step = 0; step < steps && !frontier.empty(); ++step) {
-    next.clear();
-    for (size_t i : frontier) {
-      const int x = int(i % size_t(r));
-      const int y = int(i / size_t(r));
-      for (int s = 0; s < 8; ++s) {
-        const size_t n = texel_index(wrap(x + k_ring_x[s], r), wrap(y + k_ring_y[s], r), r);
-        if (mask[n] && labels[n] == k_background) {
-          labels[n] = labels[i];
-          next.push_back(n);
-        }
-      }
-    }
-    frontier.swap(next);
-  }
-}
-
-// Otsu's method on a 256-bin histogram: the level k maximising the between-class variance of
-// {<= k} and {> k}. None when the histogram holds a single value (nothing to separate).
-std::optional<int> otsu_level(const std::vector<uint8_t>& values) {
-  double histogram[256] = {};
-  for (uint8_t v : values) histogram[v] += 1.0;
-  const double total = double(values.size());
-  double sum_all = 0.0;
-  for (int i = 0; i < 256; ++i) sum_all += i * histogram[i];
-  double weight_low = 0.0, sum_low = 0.0, best = -1.0;
-  std::optional<int> level;
-  for (int k = 0; k < 255; ++k) {
-    weight_low += histogram[k];
-    sum_low += k * histogram[k];
-    const double weight_high = total - weight_low;
-    if (weight_low == 0.0) continue;
-    if (weight_high == 0.0) break;
-    const double mean_low = sum_low / weight_low;
-    const double mean_high = (sum_all - sum_low) / weight_high;
-    const double between = weight_low * weight_high * (mean_low - mean_high) * (mean_low - mean_high);
-    if (between > best) {
-      best = between;
-      level = k;
-    }
-  }
-  return level;
-}
-
-FeatureLabels labels_from_binary(const std::vector<uint8_t>& mask, int r, uint32_t min_texels, uint32_t erode_texels) {
-  uint32_t count = 0;
-  if (erode_texels == 0) {
-    auto labels = label_components(mask, r, count);
-    return compact_labels(std::move(labels), count, r, min_texels);
-  }
-  auto labels = label_components(erode(mask, r, erode_texels), r, count);
-  grow_into_mask(labels, mask, r, erode_texels);
-  return compact_labels(std::move(labels), count, r, min_texels);
-}
-
 // Circular Gaussian of standard deviation `sigma` texels, folded onto a period of r texels and
 // normalised: (offset, weight) taps. sigma 0 is the identity.
 std::vector<std::pair<int, double>> circular_gaussian(int r, double sigma) {
@@ -240,47 +106,6 @@ bool has_exr_extension(const std::string& path) {
 }
 
 }  // namespace
-
-FeatureLabels isolate_features(const ImageRGBA8& albedo, const IsolationOptions& options) {
-  TVT_CHECK(albedo.width > 0 && albedo.width == albedo.height);
-  TVT_CHECK(albedo.texels.size() == size_t(albedo.width) * size_t(albedo.height) * 4);
-  const int r = albedo.width;
-  std::vector<uint8_t> values(size_t(r) * size_t(r));
-  for (int y = 0; y < r; ++y)
-    for (int x = 0; x < r; ++x) {
-      const uint8_t* t = albedo.at(x, y);
-      // Luminance: Rec. 709 weights on the stored (sRGB-encoded) values; only an ordering is needed.
-      values[texel_index(x, y, r)] = options.channel == IsolationOptions::Channel::Height
-                                         ? t[3]
-                                         : uint8_t(std::lround(0.2126 * t[0] + 0.7152 * t[1] + 0.0722 * t[2]));
-    }
-  // Feature: value > cut (invert: value < cut), value and cut in 0..255 units. Otsu's level k
-  // becomes the cut k + 0.5, so plain and inverted masks are complements.
-  double cut = 0.0;
-  if (options.threshold < 0.0) {
-    const std::optional<int> level = otsu_level(values);
-    if (!level) {  // a flat channel has no features on either side
-      FeatureLabels empty;
-      empty.resolution = r;
-      empty.labels.assign(values.size(), k_background);
-      return empty;
-    }
-    cut = *level + 0.5;
-  } else {
-    cut = std::min(options.threshold, 1.0) * 255.0;
-  }
-  std::vector<uint8_t> mask(values.size());
-  for (size_t i = 0; i < values.size(); ++i) mask[i] = (options.invert ? values[i] < cut : values[i] > cut) ? 1 : 0;
-  return labels_from_binary(mask, r, options.min_feature_texels, options.erode_texels);
-}
-
-FeatureLabels labels_from_mask(const ImageGray8& mask, uint32_t min_feature_texels) {
-  TVT_CHECK(mask.width > 0 && mask.width == mask.height);
-  TVT_CHECK(mask.texels.size() == size_t(mask.width) * size_t(mask.height));
-  std::vector<uint8_t> binary(mask.texels.size());
-  for (size_t i = 0; i < binary.size(); ++i) binary[i] = mask.texels[i] != 0 ? 1 : 0;
-  return labels_from_binary(binary, mask.width, min_feature_texels, 0);
-}
 
 MetaTexture build_meta_texture(const FeatureLabels& labels, const ImageGray8& variation, double blur_texels) {
   const int r = labels.resolution;
@@ -509,10 +334,11 @@ Result<MetaTexture> read_meta_texture(const std::string& path) {
   return meta;
 }
 
-ImageRGBA8 meta_debug_image(const MetaTexture& meta, const ImageRGBA8& albedo) {
+ImageRGBA8 meta_debug_image(const MetaTexture& meta, const ImageRGBA8& albedo, const std::vector<uint8_t>& marks) {
   const int r = meta.resolution;
   TVT_CHECK(r > 0 && meta.texels.size() == size_t(r) * size_t(r));
   TVT_CHECK(albedo.width == r && albedo.height == r && albedo.texels.size() == size_t(r) * size_t(r) * 4);
+  TVT_CHECK(marks.empty() || marks.size() == size_t(r) * size_t(r));
   ImageRGBA8 out(r, r);
   std::vector<uint8_t> is_centroid(size_t(r) * size_t(r), 0);
   for (int y = 0; y < r; ++y)
@@ -534,6 +360,11 @@ ImageRGBA8 meta_debug_image(const MetaTexture& meta, const ImageRGBA8& albedo) {
         dst[c] = uint8_t((src[c] * 35 + tint * 65 * 2 + 100) / 200);
       }
     }
+  // Isolation marks (compose/feature_isolation.h): 1 filled pin-hole, 2 dropped speck, 3 split line.
+  constexpr uint8_t k_mark_rgb[4][3] = {{0, 0, 0}, {40, 90, 255}, {255, 40, 40}, {255, 230, 0}};
+  for (size_t i = 0; i < marks.size(); ++i)
+    if (marks[i] >= 1 && marks[i] <= 3)
+      for (int c = 0; c < 3; ++c) out.texels[i * 4 + size_t(c)] = k_mark_rgb[marks[i]][c];
   for (int y = 0; y < r; ++y)
     for (int x = 0; x < r; ++x) {
       if (!is_centroid[texel_index(x, y, r)]) continue;

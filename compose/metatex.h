@@ -7,31 +7,11 @@
 #include <string>
 #include <vector>
 
+#include "compose/feature_isolation.h"
 #include "compose/image.h"
 #include "vt/result.h"
 
 namespace tvt {
-
-// Feature labels on a square, tileable texture: -1 = background, 0..count-1 = feature id.
-struct FeatureLabels {
-  int resolution = 0;
-  std::vector<int32_t> labels;
-  uint32_t count = 0;
-};
-
-struct IsolationOptions {
-  enum class Channel { Luminance, Height };
-  Channel channel = Channel::Height;
-  double threshold = -1.0;        // in [0,1]; < 0: automatic (Otsu's method)
-  bool invert = false;            // features are the dark side
-  uint32_t min_feature_texels = 8;  // components smaller than this are specks and dropped
-  uint32_t erode_texels = 0;      // optional erosion before labelling, splits touching features
-};
-
-// Automatic isolation: threshold, then connected components (4-connected) on the torus.
-FeatureLabels isolate_features(const ImageRGBA8& albedo, const IsolationOptions& options);
-// A hand-made mask (non-zero = feature): connected components on the torus, specks dropped.
-FeatureLabels labels_from_mask(const ImageGray8& mask, uint32_t min_feature_texels);
 
 struct MetaTexel {
   int16_t dx = 0;         // offset to the feature centroid, material texels (0 if d == 0)
@@ -60,7 +40,8 @@ Status write_meta_texture(const std::string& path, const MetaTexture& meta);
 Result<MetaTexture> read_meta_texture(const std::string& path);
 
 // Colour-coded debug image: albedo darkened, each feature tinted with a colour from its id,
-// centroids marked with a white cross.
-ImageRGBA8 meta_debug_image(const MetaTexture& meta, const ImageRGBA8& albedo);
+// centroids marked with a white cross. `marks` (IsolationReport::marks, empty: none) adds what
+// automatic isolation did: filled pin-holes blue, dropped specks red, split lines yellow.
+ImageRGBA8 meta_debug_image(const MetaTexture& meta, const ImageRGBA8& albedo, const std::vector<uint8_t>& marks = {});
 
 }  // namespace tvt

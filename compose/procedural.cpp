@@ -684,4 +684,12 @@ Result<GeneratedMaterial> generate_material(std::string_view generator, uint32_t
   return m;
 }
 
+ImageGray8 variation_noise(uint32_t resolution, uint32_t seed) {
+  const auto grid = fbm_grid(resolution, seed, 5, 4.0, 0.55, 2.0);
+  ImageGray8 out{int(resolution), int(resolution)};
+  for (size_t i = 0; i < grid.size(); ++i)
+    out.texels[i] = uint8_t(std::lround((std::isfinite(grid[i]) ? std::clamp(grid[i], 0.f, 1.f) : 0.f) * 255.0));
+  return out;
+}
+
 }  // namespace tvt

@@ -30,4 +30,11 @@ bool is_known_generator(std::string_view generator);
 std::vector<float> fbm_grid(uint32_t size, uint32_t seed, uint32_t octaves, double frequency, double gain,
                             double lacunarity);
 
+// FBPB variation map (Algorithm 1) for a material that brings none: tileable fBm as 0..255.
+// Image materials use k_image_variation_seed in scenes and in `terravt metatex` alike, so the
+// two write the same meta-texture for the same image (the map is read at per-feature hashed
+// offsets at run time, so one fixed map serves every image).
+ImageGray8 variation_noise(uint32_t resolution, uint32_t seed);
+inline constexpr uint32_t k_image_variation_seed = 0x76617269u;  // "vari"
+
 }  // namespace tvt

@@ -7,6 +7,7 @@
 #include <string_view>
 #include <vector>
 
+#include "compose/material_image.h"
 #include "vt/result.h"
 #include "vt/vt_config.h"
 
@@ -33,11 +34,15 @@ struct TerrainDesc {
   double height_m = 900.0;     // height of a heightmap value of 1 in metres (>= 0)
 };
 
-// A material texture: an image file, or one of the built-in generators
-// ("sand", "grass", "rock", "mud", "cobbles", "bricks") at a power-of-two resolution.
+// A material texture: an image file of any size (resampled to a power-of-two square, see
+// compose/material_image.h), or one of the built-in generators ("sand", "grass", "rock",
+// "mud", "cobbles", "bricks") at a power-of-two resolution.
 struct TextureDesc {
-  std::string image_path;      // albedo RGB; if it has alpha, alpha is the height/blend map
+  std::string image_path;      // albedo RGB (and alpha, see height_source)
   std::string height_path;     // optional separate height/blend map (first channel)
+  HeightSource height_source = HeightSource::Auto;  // where A comes from (material_image.h)
+  bool height_invert = false;  // luminance height: the lightest pixel is the deepest
+  uint32_t image_resolution = 0;  // images: texels per side after resampling, 0 = the size rule
   std::string generator;       // used when image_path is empty
   uint32_t resolution = 256;   // generator output size, power of two 16 ... 4096
   uint32_t seed = 0;           // generator seed (0: derived from scene seed and material index)

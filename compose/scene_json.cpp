@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -106,23 +107,35 @@ class Parser : public json_check::Reader {
   }
 
   TextureDesc texture(const json& v, const Ptr& at) const {
-    object(v, at, {"generator", "resolution", "seed", "image", "height"});
+    object(v, at, {"generator", "resolution", "seed", "image", "height", "height_source", "height_invert"});
     const json* generator = field(v, "generator");
     const json* image = field(v, "image");
     if ((generator != nullptr) == (image != nullptr)) fail(at, "needs exactly one of \"generator\" or \"image\"", v);
     TextureDesc t;
     if (generator) {
-      if (const json* f = field(v, "height")) fail(at / "height", "only allowed with \"image\"", *f);
+      for (const char* key : {"height", "height_source", "height_invert"})
+        if (const json* f = field(v, key)) fail(at / key, "only allowed with \"image\"", *f);
       t.generator = text(*generator, at / "generator");
       if (!is_known_generator(t.generator)) fail(at / "generator", "must be one of sand, grass, rock, mud, cobbles, bricks", *generator);
       if (const json* f = field(v, "resolution")) t.resolution = uint(*f, at / "resolution", 16, 4096, true);
       if (const json* f = field(v, "seed")) t.seed = uint(*f, at / "seed", 0, k_u32_max);
       return t;
     }
-    if (const json* f = field(v, "resolution")) fail(at / "resolution", "only allowed with \"generator\"", *f);
+    if (const json* f = field(v, "resolution"))
+      t.image_resolution = uint(*f, at / "resolution", k_min_material_resolution, k_max_material_resolution, true);
     if (const json* f = field(v, "seed")) fail(at / "seed", "only allowed with \"generator\"", *f);
     t.image_path = file(*image, at / "image");
     if (const json* f = field(v, "height")) t.height_path = file(*f, at / "height");
+    if (const json* f = field(v, "height_source")) {
+      const auto source = f->is_string() ? height_source_from_string(f->get_ref<const std::string&>()) : std::nullopt;
+      if (!source) fail(at / "height_source", "must be one of auto, alpha, luminance, file, none", *f);
+      t.height_source = *source;
+    }
+    if (t.height_source == HeightSource::File && t.height_path.empty())
+      fail(at / "height_source", "\"file\" needs \"height\" (the height image)", *field(v, "height_source"));
+    if (!t.height_path.empty() && t.height_source != HeightSource::Auto && t.height_source != HeightSource::File)
+      fail(at / "height_source", "must be auto or file when \"height\" names a height image", *field(v, "height_source"));
+    if (const json* f = field(v, "height_invert")) t.height_invert = boolean(*f, at / "height_invert");
     return t;
   }
 
@@ -323,6 +336,9 @@ std::string scene_to_json(const SceneDesc& s) {
     if (!m.albedo.image_path.empty()) {
       albedo["image"] = path(m.albedo.image_path);
       if (!m.albedo.height_path.empty()) albedo["height"] = path(m.albedo.height_path);
+      albedo["height_source"] = std::string(to_string(m.albedo.height_source));
+      if (m.albedo.height_invert) albedo["height_invert"] = true;
+      if (m.albedo.image_resolution) albedo["resolution"] = m.albedo.image_resolution;
     } else {
       albedo["generator"] = m.albedo.generator;
       albedo["resolution"] = m.albedo.resolution;

@@ -5,7 +5,7 @@ set -euo pipefail
 packages=(
   build-essential cmake pkg-config git
   libvulkan-dev vulkan-validationlayers mesa-vulkan-drivers glslang-tools
-  libglm-dev libopenimageio-dev libzstd-dev zstd
+  libglm-dev libopenimageio-dev libopencv-imgproc-dev libzstd-dev zstd
   nlohmann-json3-dev libcli11-dev libgtest-dev libxxhash-dev
   clang libclang-rt-14-dev
 )

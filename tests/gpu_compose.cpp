@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cstdlib>
 #include <bit>
+#include <filesystem>
 #include <map>
 
 #include "compose/packed_scene.h"
@@ -11,7 +12,9 @@
 #include "compose/region.h"
 #include "compose/scene.h"
 #include "render/gpu_composer.h"
+#include "support/file_scene.h"
 #include "support/gpu_test.h"
+#include "support/temp_dir.h"
 
 using namespace tvt;
 
@@ -88,6 +91,32 @@ TEST_F(GpuCompose, MatchesReferenceAtTheFarCornerOf2To24) {
   const std::vector<PageId> pages = {{0, 0, 0}, {0, last, last}, {0, last - 1, last}, {4, 4095, 4095}};
   expect_agreement(assets, options_for(Method::FbpbDpt), pages, "fbpb+dpt2 far corner");
   expect_agreement(assets, options_for(Method::Dpt2), pages, "dpt2 far corner");
+}
+
+// A material from a 100 x 100 greyscale image without alpha (resampled to 128, height and FBPB
+// features from luminance) composes the same pages on both sides, for every method.
+TEST_F(GpuCompose, MatchesReferenceWithAHundredTexelGreyscaleImageMaterial) {
+  const std::filesystem::path dir = test::fresh_test_dir("tvt_gpu_compose_image");
+  ImageGray8 grey(100, 100);  // dark 20 x 8 bricks, light mortar, a little noise
+  for (int y = 0; y < 100; ++y)
+    for (int x = 0; x < 100; ++x) {
+      const int row = y / 10, bx = (x + (row % 2) * 12) % 25, by = y % 10;
+      grey.at(x, y) = uint8_t(bx < 22 && by < 8 ? 50 + (x * 7 + y * 3) % 20 : 200 + (x + y) % 9);
+    }
+  ASSERT_TRUE(write_image((dir / "wall.png").string(), grey).ok());
+  const std::string scene = test::write_scene_json(dir, "scene.json", R"(
+    {"name": "ground", "albedo": {"generator": "sand", "resolution": 64}, "weight": "remainder"},
+    {"name": "wall", "albedo": {"image": "wall.png"}, "period_texels": 96, "mode": "fbpb+dpt",
+     "fbpb": {}, "dpt": {"layers": [{"patch_texels": 64}]},
+     "weight": {"rule": {"height": [0.3, 1.0], "height_fade": 0.2}}})");
+  auto desc = load_scene_file(scene);
+  ASSERT_TRUE(desc.ok()) << desc.error().message;
+  auto assets = load_scene_assets(desc.value());
+  ASSERT_TRUE(assets.ok()) << assets.error().message;
+  ASSERT_EQ(assets->materials->info(1).resolution, 128);
+  const std::vector<PageId> pages = {{0, 0, 0}, {0, 7, 9}, {0, 15, 15}, {2, 1, 2}};
+  for (Method m : k_all_methods) expect_agreement(assets.value(), options_for(m), pages, std::string(to_string(m)) + " image");
+  std::filesystem::remove_all(dir);
 }
 
 TEST_F(GpuCompose, SupersampledMipsMatchReference) {

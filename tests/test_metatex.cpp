@@ -214,7 +214,8 @@ void expect_labels_match_mask(const tvt::FeatureLabels& labels, const tvt::Image
 TEST(Metatex, OtsuSeparatesABimodalHeightAndAnExplicitThresholdAgrees) {
   const auto features = disc_mask({{0, 0, 7}, {32, 20, 5}, {50, 50, 9}});
   const auto albedo = bimodal_albedo(features, 5);
-  tvt::IsolationOptions options;  // height, Otsu
+  tvt::IsolationOptions options;  // auto channel (height: it varies), Otsu
+  options.smooth_sigma = 0.0;     // exact disc outlines
   const auto otsu = tvt::isolate_features(albedo, options);
   EXPECT_EQ(otsu.count, 3u);
   expect_labels_match_mask(otsu, features);
@@ -225,16 +226,25 @@ TEST(Metatex, OtsuSeparatesABimodalHeightAndAnExplicitThresholdAgrees) {
   EXPECT_EQ(tvt::isolate_features(albedo, options).count, 0u);
 }
 
-TEST(Metatex, InvertAndLuminanceFindTheDarkSide) {
+TEST(Metatex, LuminanceFindsTheDarkDiscsByItselfAndEitherSideWhenTold) {
   const auto features = disc_mask({{10, 10, 6}, {R - 1, 40, 5}});
   const auto albedo = bimodal_albedo(features, 9);
   tvt::IsolationOptions options;
   options.channel = tvt::IsolationOptions::Channel::Luminance;
-  options.invert = true;  // features are dark in colour
+  options.smooth_sigma = 0.0;
+  tvt::IsolationReport report;
+  const auto automatic = tvt::isolate_features(albedo, options, &report);  // the light side is the network
+  EXPECT_FALSE(report.features_light);
+  EXPECT_FALSE(report.polarity_forced);
+  EXPECT_GT(report.light_network_share, report.dark_network_share);
+  EXPECT_EQ(automatic.count, 2u);
+  expect_labels_match_mask(automatic, features);
+  options.polarity = tvt::IsolationOptions::Polarity::Dark;  // features are dark in colour
   const auto dark = tvt::isolate_features(albedo, options);
-  EXPECT_EQ(dark.count, 2u);
-  expect_labels_match_mask(dark, features);
-  options.invert = false;  // the bright background: one connected region around the discs
+  EXPECT_EQ(dark.labels, automatic.labels);
+  options.polarity = tvt::IsolationOptions::Polarity::Light;  // the bright background: one connected region
+  options.split_touching = false;
+  options.fill_holes = false;  // the discs are holes in it
   const auto bright = tvt::isolate_features(albedo, options);
   EXPECT_EQ(bright.count, 1u);
   expect_labels_match_mask(bright, features, true);
@@ -243,9 +253,10 @@ TEST(Metatex, InvertAndLuminanceFindTheDarkSide) {
 TEST(Metatex, FlatChannelHasNoFeatures) {
   tvt::ImageRGBA8 flat(16, 16);
   for (auto& t : flat.texels) t = 128;
-  for (bool invert : {false, true}) {
+  for (auto polarity : {tvt::IsolationOptions::Polarity::Auto, tvt::IsolationOptions::Polarity::Light,
+                        tvt::IsolationOptions::Polarity::Dark}) {
     tvt::IsolationOptions options;
-    options.invert = invert;
+    options.polarity = polarity;
     const auto labels = tvt::isolate_features(flat, options);
     EXPECT_EQ(labels.count, 0u);
     EXPECT_EQ(labels.labels.size(), 256u);
@@ -262,6 +273,8 @@ TEST(Metatex, ErosionSplitsTouchingFeaturesAndGrowsThemBack) {
     for (int x = 0; x < R; ++x) albedo.at(x, y)[3] = mask.at(x, y);
   tvt::IsolationOptions options;
   options.threshold = 0.5;
+  options.smooth_sigma = 0.0;
+  options.split_touching = false;
   EXPECT_EQ(tvt::isolate_features(albedo, options).count, 1u);
   options.erode_texels = 1;
   const auto split = tvt::isolate_features(albedo, options);

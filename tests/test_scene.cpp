@@ -543,7 +543,11 @@ TEST_F(SceneTest, EveryRuleViolationNamesFileAndPointer) {
       Set("/materials/0/albedo", json::object()),
       Set("/materials/0/albedo/image", "missing.png"),
       Set("/materials/0/albedo/height", "missing.png"),
-      Set("/materials/0/albedo/resolution", 256),
+      Set("/materials/0/albedo/resolution", 100),
+      Set("/materials/0/albedo/height_source", "sideways"),
+      Set("/materials/0/albedo/height_source", "none"),  // with a "height" image
+      Set("/materials/0/albedo/height_invert", 1),
+      Set("/materials/1/albedo/height_source", "luminance"),  // material 1 is a generator
       Set("/materials/0/albedo/seed", 1),
       Set("/materials/0/normal", "missing.png"),
       Set("/materials/0/normal", 7),

@@ -78,6 +78,9 @@ int run_compose(const ComposeArgs& a) {
   std::printf("scene %s, V = 2^%u, mip %u, region (%lld, %lld) %dx%d, %zu pages per method, %s, supersample %u\n",
               assets->desc.source_path.c_str(), vt.log2_size, a.mip, (long long)region.x, (long long)region.y,
               region.width, region.height, pages.size(), a.device.c_str(), a.supersample);
+  for (size_t n = 0; n < assets->materials->size(); ++n)
+    if (const std::string& note = assets->materials->info(n).image_note; !note.empty())
+      std::printf("  material %zu %s: %s\n", n, assets->desc.materials[n].name.c_str(), note.c_str());
 
   std::unique_ptr<vk::Context> context;
   std::unique_ptr<GpuComposer> composer;

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "compose/image.h"
+#include "compose/material_image.h"
 #include "compose/metatex.h"
 #include "compose/procedural.h"
 #include "tools/cli_common.h"
@@ -24,14 +25,21 @@ namespace {
 
 constexpr int k_max_resolution = 16384;  // offsets are int16 and stay inside ±R
 
+// Isolation defaults are IsolationOptions{}'s: the same as scene loading uses.
 struct MetatexArgs {
-  std::string input, height, generator, mask, channel, out, debug;
-  uint32_t resolution = 512;
+  std::string input, height, generator, mask, out, debug;
+  std::string channel = "auto", polarity = "auto", height_source = "auto";
+  bool height_invert = false;
+  uint32_t resolution = 0;  // 0: generator 512, image the size rule
   uint32_t seed = 1;
   double threshold = -1.0;
   bool invert = false;
   bool automatic = false;
-  uint32_t min_texels = 8;
+  bool no_split = false, no_fill = false;
+  uint32_t min_texels = IsolationOptions{}.min_feature_texels;
+  double speck_fraction = IsolationOptions{}.speck_fraction;
+  double smooth = IsolationOptions{}.smooth_sigma;
+  double background = IsolationOptions{}.background_sigma;
   uint32_t erode = 0;
   double blur = 2.0;
 };
@@ -51,7 +59,8 @@ bool is_power_of_two(int v) { return v > 0 && (v & (v - 1)) == 0; }
 struct Material {
   ImageRGBA8 albedo;
   ImageGray8 variation;  // empty: never chips
-  bool has_height = false;
+  std::string image_summary;  // what was done to the input image
+  int source_width = 0, source_height = 0;  // of the input image (0: generator)
   bool has_exact_labels = false;
   FeatureLabels exact_labels;
   std::string source;  // for messages: file name or generator name
@@ -59,34 +68,36 @@ struct Material {
 
 int load_material(const MetatexArgs& a, Material& m) {
   if (!a.input.empty()) {
-    auto albedo = read_image_rgba8(a.input);
-    if (!albedo) return usage_error("--input " + albedo.error().message);
-    m.albedo = std::move(*albedo);
+    // The scene loader's path (compose/material_image.h): same texels for the same options.
+    MaterialImageOptions o;
+    o.height = *height_source_from_string(a.height_source);  // CLI::IsMember checked it
+    o.height_path = a.height;
+    o.invert_height = a.height_invert;
+    if (a.resolution != 0 && (!is_power_of_two(int(a.resolution)) || a.resolution < uint32_t(k_min_material_resolution) ||
+                              a.resolution > uint32_t(k_max_material_resolution)))
+      return usage_error("--resolution " + std::to_string(a.resolution) + ": must be a power of two from " +
+                         std::to_string(k_min_material_resolution) + " to " + std::to_string(k_max_material_resolution));
+    o.resolution = int(a.resolution);
+    if (o.height == HeightSource::File && a.height.empty()) return usage_error("--height-source file needs --height");
+    bool height_failed = false;
+    auto image = load_material_image(a.input, o, &height_failed);
+    if (!image) return usage_error((height_failed ? "--height " : "--input ") + image.error().message);
+    m.albedo = std::move(image->image);
+    m.image_summary = image->report.summary();
+    m.source_width = image->report.source_width;
+    m.source_height = image->report.source_height;
+    m.variation = variation_noise(uint32_t(m.albedo.width), k_image_variation_seed);  // as scene loading does
     m.source = a.input;
-    // Height present: an alpha channel that is not constant 255.
-    for (size_t i = 3; i < m.albedo.texels.size() && !m.has_height; i += 4) m.has_height = m.albedo.texels[i] != 255;
-    if (!a.height.empty()) {
-      auto height = read_image_float(a.height);
-      if (!height) return usage_error("--height " + height.error().message);
-      if (height->width != m.albedo.width || height->height != m.albedo.height)
-        return usage_error("--height " + a.height + ": " + std::to_string(height->width) + " x " +
-                           std::to_string(height->height) + " texels, but --input is " +
-                           std::to_string(m.albedo.width) + " x " + std::to_string(m.albedo.height));
-      for (int y = 0; y < m.albedo.height; ++y)
-        for (int x = 0; x < m.albedo.width; ++x)
-          m.albedo.at(x, y)[3] = uint8_t(std::lround(std::clamp(height->at(x, y, 0), 0.0f, 1.0f) * 255.0f));
-      m.has_height = true;
-    }
   } else {
     if (!is_known_generator(a.generator))
       return usage_error("--generator " + a.generator + ": unknown generator (sand, grass, rock, mud, cobbles, bricks)");
-    if (a.resolution > uint32_t(k_max_resolution) || !is_power_of_two(int(a.resolution)))
-      return usage_error("--resolution " + std::to_string(a.resolution) + ": must be a power of two");
-    auto generated = generate_material(a.generator, a.resolution, a.seed);
+    const uint32_t resolution = a.resolution ? a.resolution : 512;
+    if (resolution > uint32_t(k_max_resolution) || !is_power_of_two(int(resolution)))
+      return usage_error("--resolution " + std::to_string(resolution) + ": must be a power of two");
+    auto generated = generate_material(a.generator, resolution, a.seed);
     if (!generated) return usage_error("--generator " + a.generator + ": " + generated.error().message);
     m.albedo = std::move(generated->albedo);
     m.source = "generator " + a.generator;
-    m.has_height = true;
     const int r = m.albedo.width;
     if (generated->variation.width == r && generated->variation.height == r) m.variation = std::move(generated->variation);
     if (!a.automatic) {
@@ -117,7 +128,7 @@ int load_material(const MetatexArgs& a, Material& m) {
   return 0;
 }
 
-int run_metatex(const MetatexArgs& a, bool threshold_given, bool channel_given) {
+int run_metatex(const MetatexArgs& a, bool threshold_given) {
   const auto start = std::chrono::steady_clock::now();
   if (a.input.empty() == a.generator.empty()) return usage_error("give exactly one of --input or --generator");
   if (auto problem = check_image_output("--out", a.out, true); !problem.empty()) return usage_error(problem);
@@ -139,18 +150,19 @@ int run_metatex(const MetatexArgs& a, bool threshold_given, bool channel_given) 
   const int r = m.albedo.width;
 
   FeatureLabels labels;
+  IsolationReport report;
   uint32_t specks = 0;
   std::string method;
   if (!a.mask.empty()) {
     auto mask_rgba = read_image_rgba8(a.mask);
     if (!mask_rgba) return usage_error("--mask " + mask_rgba.error().message);
-    if (mask_rgba->width != r || mask_rgba->height != r)
+    // Drawn on the input as given: its size, resampled with it (as scene loading does).
+    const int want_w = m.source_width ? m.source_width : r, want_h = m.source_height ? m.source_height : r;
+    if (mask_rgba->width != want_w || mask_rgba->height != want_h)
       return usage_error("--mask " + a.mask + ": " + std::to_string(mask_rgba->width) + " x " +
-                         std::to_string(mask_rgba->height) + " texels, but the material is " + std::to_string(r) +
-                         " x " + std::to_string(r));
-    ImageGray8 mask(r, r);
-    for (int y = 0; y < r; ++y)
-      for (int x = 0; x < r; ++x) mask.at(x, y) = mask_rgba->at(x, y)[0];
+                         std::to_string(mask_rgba->height) + " texels, but the material image is " +
+                         std::to_string(want_w) + " x " + std::to_string(want_h));
+    const ImageGray8 mask = resample_mask_nearest(*mask_rgba, r);
     labels = labels_from_mask(mask, a.min_texels);
     specks = labels_from_mask(mask, 1).count - labels.count;
     method = "hand-made mask " + a.mask;
@@ -159,26 +171,30 @@ int run_metatex(const MetatexArgs& a, bool threshold_given, bool channel_given) 
     method = "exact labels of " + m.source;
   } else {
     IsolationOptions options;
-    const bool use_height = channel_given ? a.channel == "height" : m.has_height;
-    options.channel = use_height ? IsolationOptions::Channel::Height : IsolationOptions::Channel::Luminance;
+    options.channel = a.channel == "height"      ? IsolationOptions::Channel::Height
+                      : a.channel == "luminance" ? IsolationOptions::Channel::Luminance
+                                                 : IsolationOptions::Channel::Auto;
     options.threshold = threshold_given ? a.threshold : -1.0;
-    options.invert = a.invert;
+    options.polarity = a.invert || a.polarity == "dark" ? IsolationOptions::Polarity::Dark
+                       : a.polarity == "light"          ? IsolationOptions::Polarity::Light
+                                                        : IsolationOptions::Polarity::Auto;
     options.min_feature_texels = a.min_texels;
+    options.speck_fraction = a.speck_fraction;
+    options.smooth_sigma = a.smooth;
+    options.background_sigma = a.background;
+    options.split_touching = !a.no_split;
+    options.fill_holes = !a.no_fill;
     options.erode_texels = a.erode;
-    labels = isolate_features(m.albedo, options);
-    IsolationOptions keep_all = options;
-    keep_all.min_feature_texels = 1;
-    specks = isolate_features(m.albedo, keep_all).count - labels.count;
-    method = std::string("automatic on ") + (use_height ? "height" : "luminance") +
-             (threshold_given ? ", threshold " + std::to_string(a.threshold) : ", Otsu threshold") +
-             (a.invert ? ", inverted" : "") + (a.erode ? ", erode " + std::to_string(a.erode) : "");
+    labels = isolate_features(m.albedo, options, &report);
+    specks = report.specks_dropped;
+    method = "automatic: " + report.summary() + (a.erode ? ", erode " + std::to_string(a.erode) : "");
   }
 
   const MetaTexture meta = build_meta_texture(labels, m.variation, a.blur);
 
   if (auto written = write_meta_texture(a.out, meta); !written) return runtime_error(written.error().message);
   if (!a.debug.empty()) {
-    if (auto written = write_image(a.debug, meta_debug_image(meta, m.albedo)); !written) {
+    if (auto written = write_image(a.debug, meta_debug_image(meta, m.albedo, report.marks)); !written) {
       std::error_code ignored;
       std::filesystem::remove(a.out, ignored);  // all or nothing
       return runtime_error(written.error().message);
@@ -196,13 +212,15 @@ int run_metatex(const MetatexArgs& a, bool threshold_given, bool channel_given) 
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   std::printf("metatex: %s\n", m.source.c_str());
   std::printf("  resolution       %d x %d texels\n", r, r);
+  if (!m.image_summary.empty()) std::printf("  image            %s\n", m.image_summary.c_str());
   std::printf("  isolation        %s\n", method.c_str());
   std::printf("  features         %u\n", labels.count);
   std::printf("  texels covered   %.2f %%\n", 100.0 * double(covered) / (double(r) * double(r)));
   if (labels.count > 0)
     std::printf("  feature size     smallest %llu, largest %llu texels\n", (unsigned long long)*smallest,
                 (unsigned long long)*largest);
-  std::printf("  specks dropped   %u (below %u texels)\n", specks, a.min_texels);
+  std::printf("  specks dropped   %u (below %u texels)\n", specks,
+              report.speck_limit ? report.speck_limit : a.min_texels);
   std::printf("  soft map blur    sigma %.2f texels\n", a.blur);
   std::printf("  wrote            %s%s%s\n", a.out.c_str(), a.debug.empty() ? "" : ", ", a.debug.c_str());
   std::printf("  time             %.3f s\n", seconds);
@@ -213,31 +231,66 @@ const CommandRegistrar k_register{
     "metatex", "Build an FBPB meta-texture (centroid offsets, feature mask, soft map) for a material", 30,
     [](CLI::App& app) -> RunFn {
       auto a = std::make_shared<MetatexArgs>();
-      auto* input = app.add_option("--input", a->input, "Material albedo image (alpha = height if present)");
+      auto* input = app.add_option("--input", a->input,
+                                   "Material image, any size (resampled to a power-of-two square like a scene's)");
       auto* generator = app.add_option("--generator", a->generator, "Built-in material generator (cobbles, bricks, ...)");
       input->excludes(generator);
-      app.add_option("--height", a->height, "Height image; its first channel replaces the albedo's alpha")
+      app.add_option("--height", a->height, "Height image (any size); its first channel becomes the height")
           ->needs(input);
-      app.add_option("--resolution", a->resolution, "Generator resolution, power of two")->needs(generator);
+      app.add_option("--height-source", a->height_source,
+                     "Height (alpha) from: auto (height image, else varying alpha, else luminance), alpha, "
+                     "luminance, file, none")
+          ->check(CLI::IsMember({"auto", "alpha", "luminance", "file", "none"}))
+          ->needs(input)
+          ->capture_default_str();
+      app.add_flag("--height-invert", a->height_invert, "Luminance height: the lightest pixel is the deepest")
+          ->needs(input);
+      app.add_option("--resolution", a->resolution,
+                     "Texels per side, power of two (generator: default 512; image: default the size rule)");
       app.add_option("--seed", a->seed, "Generator seed")->needs(generator);
       app.add_flag("--auto", a->automatic, "Isolate features automatically instead of using the generator's labels")
           ->needs(generator);
       auto* mask = app.add_option("--mask", a->mask, "Hand-made feature mask (non-zero first channel = feature)");
-      auto* channel = app.add_option("--channel", a->channel, "Channel to threshold (default: height if present)")
-                          ->check(CLI::IsMember({"height", "luminance"}));
-      auto* threshold = app.add_option("--threshold", a->threshold, "Feature if value > threshold (0..1); default Otsu")
+      auto* channel = app.add_option("--channel", a->channel, "Channel to threshold: auto (height if it varies), height, luminance")
+                          ->check(CLI::IsMember({"auto", "height", "luminance"}))
+                          ->capture_default_str();
+      auto* threshold = app.add_option("--threshold", a->threshold, "Cut between the sides (0..1); default Otsu")
                             ->check(finite_range(0.0, 1.0));
-      auto* invert = app.add_flag("--invert", a->invert, "Features are the dark side");
+      auto* polarity = app.add_option("--polarity", a->polarity,
+                                      "Which side are features: auto (the side that is not the connected network), "
+                                      "light, dark")
+                           ->check(CLI::IsMember({"auto", "light", "dark"}))
+                           ->capture_default_str();
+      auto* invert = app.add_flag("--invert", a->invert, "Features are the dark side (--polarity dark)");
+      invert->excludes(polarity);
       app.add_option("--min-texels", a->min_texels, "Drop components smaller than this (specks)")->capture_default_str();
-      auto* erode = app.add_option("--erode", a->erode, "Erode by this many texels before labelling (splits touching features)")
+      auto* speck = app.add_option("--speck-fraction", a->speck_fraction,
+                                   "Also drop components smaller than this fraction of the typical feature")
+                        ->check(finite_range(0.0, 1.0))
+                        ->capture_default_str();
+      auto* smooth = app.add_option("--smooth", a->smooth, "Gaussian sigma before thresholding, texels")
+                         ->check(finite_range(0.0, 64.0))
+                         ->capture_default_str();
+      auto* background = app.add_option("--background", a->background,
+                                        "Threshold the value relative to a Gaussian of this sigma (texels; removes "
+                                        "shading); 0: off")
+                             ->check(finite_range(0.0, 4096.0))
+                             ->capture_default_str();
+      auto* no_split = app.add_flag("--no-split", a->no_split, "Do not split touching features (watershed)");
+      auto* no_fill = app.add_flag("--no-fill", a->no_fill, "Do not fill pin-holes inside features");
+      auto* erode = app.add_option("--erode", a->erode,
+                                   "Erode by this many texels before labelling (the older splitter; replaces the watershed)")
                         ->check(CLI::Range(0u, 256u));
       app.add_option("--blur", a->blur, "Gaussian sigma of the soft feature map, texels")
           ->check(finite_range(0.0, 1024.0))
           ->capture_default_str();
       app.add_option("--out", a->out, "Meta-texture output (.exr)")->required();
-      app.add_option("--debug", a->debug, "Colour-coded debug image output (.png ...)");
-      for (CLI::Option* automatic_only : {channel, threshold, invert, erode}) automatic_only->excludes(mask);
-      return [a, threshold, channel] { return run_metatex(*a, threshold->count() > 0, channel->count() > 0); };
+      app.add_option("--debug", a->debug,
+                     "Debug image (.png ...): features tinted, centroids white, split lines yellow, filled holes "
+                     "blue, dropped specks red");
+      for (CLI::Option* automatic_only : {channel, threshold, polarity, invert, erode, speck, smooth, background, no_split, no_fill})
+        automatic_only->excludes(mask);
+      return [a, threshold] { return run_metatex(*a, threshold->count() > 0); };
     }};
 
 }  // namespace

@@ -1,0 +1,500 @@
+// FBPB feature isolation: see compose/feature_isolation.h for the method and its steps.
+//
+// Why OpenCV: its cv::distanceTransform (exact Euclidean, Felzenszwalb) and cv::watershed
+// (Meyer's marker-based flooding) are the textbook pair for separating touching objects, are
+// packaged by Debian (libopencv-imgproc-dev, already a dependency of OpenImageIO's runtime) and
+// need nothing else of OpenCV. Neither knows about a torus, so both run on the texture padded
+// periodically (cv::copyMakeBorder with BORDER_WRAP) and the labels of the padding are joined
+// to those of the texels they repeat.
+#include "compose/feature_isolation.h"
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <numeric>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "compose/material_image.h"
+#include "shared/hash.h"
+#include "vt/result.h"
+
+namespace tvt {
+
+namespace {
+
+constexpr int32_t k_background = -1;
+
+int wrap(int64_t v, int r) { return int(gpu::tvt_floor_mod(v, r)); }
+size_t texel_index(int x, int y, int r) { return size_t(y) * size_t(r) + size_t(x); }
+
+constexpr int k_step_x[4] = {1, -1, 0, 0};
+constexpr int k_step_y[4] = {0, 0, 1, -1};
+
+// Connected components of the non-zero texels of `mask` (4-connected on the torus). Labels are
+// numbered in row-major order of each component's first texel.
+std::vector<int32_t> label_components(const std::vector<uint8_t>& mask, int r, uint32_t& count) {
+  std::vector<int32_t> labels(mask.size(), k_background);
+  std::vector<size_t> queue;
+  count = 0;
+  for (size_t seed = 0; seed < mask.size(); ++seed) {
+    if (!mask[seed] || labels[seed] != k_background) continue;
+    const int32_t id = int32_t(count++);
+    labels[seed] = id;
+    queue.assign(1, seed);
+    for (size_t head = 0; head < queue.size(); ++head) {
+      const int x = int(queue[head] % size_t(r));
+      const int y = int(queue[head] / size_t(r));
+      for (int s = 0; s < 4; ++s) {
+        const size_t n = texel_index(wrap(x + k_step_x[s], r), wrap(y + k_step_y[s], r), r);
+        if (mask[n] && labels[n] == k_background) {
+          labels[n] = id;
+          queue.push_back(n);
+        }
+      }
+    }
+  }
+  return labels;
+}
+
+// Drops labels with fewer than `min_texels` texels and renumbers the rest 0..count-1 in
+// row-major order of their first texel.
+FeatureLabels compact_labels(std::vector<int32_t> labels, uint32_t count, int r, uint32_t min_texels) {
+  std::vector<uint32_t> sizes(count, 0);
+  for (int32_t label : labels)
+    if (label >= 0) ++sizes[size_t(label)];
+  std::vector<int32_t> renumber(count, k_background);
+  FeatureLabels result;
+  result.resolution = r;
+  for (int32_t& label : labels) {
+    if (label < 0) continue;
+    const size_t old = size_t(label);
+    if (sizes[old] < min_texels) {
+      label = k_background;
+      continue;
+    }
+    if (renumber[old] == k_background) renumber[old] = int32_t(result.count++);
+    label = renumber[old];
+  }
+  result.labels = std::move(labels);
+  return result;
+}
+
+// 8-neighbourhood, for erosion and growing back: a (2e+1)^2 square structuring element, so
+// that eroding and growing a square feature by e texels gives back the same square.
+constexpr int k_ring_x[8] = {1, 1, 0, -1, -1, -1, 0, 1};
+constexpr int k_ring_y[8] = {0, 1, 1, 1, 0, -1, -1, -1};
+
+// Erosion on the torus by a (2·steps+1)^2 square: one 3x3 step, `steps` times.
+std::vector<uint8_t> erode(std::vector<uint8_t> mask, int r, uint32_t steps) {
+  std::vector<uint8_t> next(mask.size());
+  for (uint32_t step = 0; step < steps; ++step) {
+    for (int y = 0; y < r; ++y)
+      for (int x = 0; x < r; ++x) {
+        bool keep = mask[texel_index(x, y, r)] != 0;
+        for (int s = 0; s < 8 && keep; ++s)
+          keep = mask[texel_index(wrap(x + k_ring_x[s], r), wrap(y + k_ring_y[s], r), r)] != 0;
+        next[texel_index(x, y, r)] = keep ? 1 : 0;
+      }
+    mask.swap(next);
+  }
+  return mask;
+}
+
+// Grows labels back into the un-eroded mask: every mask texel within `steps` 8-connected steps
+// (walking inside the mask) of a labelled texel takes the label of the nearest one (ties: first
+// reached, sources in row-major order). Mask texels farther away stay background, so parts
+// the erosion removed entirely (thin bridges, specks) are not brought back.
+void grow_into_mask(std::vector<int32_t>& labels, const std::vector<uint8_t>& mask, int r, uint32_t steps) {
+  std::vector<size_t> frontier;
+  for (size_t i = 0; i < labels.size(); ++i)
+    if (labels[i] >= 0) frontier.push_back(i);
+  std::vector<size_t> next;
+  for (uint32_t step = 0; step < steps && !frontier.empty(); ++step) {
+    next.clear();
+    for (size_t i : frontier) {
+      const int x = int(i % size_t(r));
+      const int y = int(i / size_t(r));
+      for (int s = 0; s < 8; ++s) {
+        const size_t n = texel_index(wrap(x + k_ring_x[s], r), wrap(y + k_ring_y[s], r), r);
+        if (mask[n] && labels[n] == k_background) {
+          labels[n] = labels[i];
+          next.push_back(n);
+        }
+      }
+    }
+    frontier.swap(next);
+  }
+}
+
+// Otsu's method on a 256-bin histogram: the level k maximising the between-class variance of
+// {<= k} and {> k}. None when the histogram holds a single value (nothing to separate).
+std::optional<int> otsu_level(const std::vector<uint8_t>& values) {
+  double histogram[256] = {};
+  for (uint8_t v : values) histogram[v] += 1.0;
+  const double total = double(values.size());
+  double sum_all = 0.0;
+  for (int i = 0; i < 256; ++i) sum_all += i * histogram[i];
+  double weight_low = 0.0, sum_low = 0.0, best = -1.0;
+  std::optional<int> level;
+  for (int k = 0; k < 255; ++k) {
+    weight_low += histogram[k];
+    sum_low += k * histogram[k];
+    const double weight_high = total - weight_low;
+    if (weight_low == 0.0) continue;
+    if (weight_high == 0.0) break;
+    const double mean_low = sum_low / weight_low;
+    const double mean_high = (sum_all - sum_low) / weight_high;
+    const double between = weight_low * weight_high * (mean_low - mean_high) * (mean_low - mean_high);
+    if (between > best) {
+      best = between;
+      level = k;
+    }
+  }
+  return level;
+}
+
+
+
+// Component sizes of `labels` (count labels).
+std::vector<uint32_t> label_sizes(const std::vector<int32_t>& labels, uint32_t count) {
+  std::vector<uint32_t> sizes(count, 0);
+  for (int32_t l : labels)
+    if (l >= 0) ++sizes[size_t(l)];
+  return sizes;
+}
+
+// Area-weighted median: the size of the component that holds the median texel of all
+// components. Specks, however many, hold few texels and barely move it. 0 when empty.
+uint32_t typical_area(std::vector<uint32_t> sizes) {
+  std::sort(sizes.begin(), sizes.end());
+  const uint64_t total = std::accumulate(sizes.begin(), sizes.end(), uint64_t(0));
+  uint64_t running = 0;
+  for (uint32_t s : sizes) {
+    running += s;
+    if (2 * running >= total) return s;
+  }
+  return 0;
+}
+
+// Share of the side's texels in its largest component (0 for an empty side).
+double network_share(const std::vector<uint8_t>& side, int r) {
+  uint32_t count = 0;
+  const auto labels = label_components(side, r, count);
+  const auto sizes = label_sizes(labels, count);
+  const uint64_t total = std::accumulate(sizes.begin(), sizes.end(), uint64_t(0));
+  if (total == 0) return 0.0;
+  return double(*std::max_element(sizes.begin(), sizes.end())) / double(total);
+}
+
+// Wrap-around Gaussian of the channel values: padded periodically, blurred, cropped.
+std::vector<uint8_t> smooth_wrapped(const std::vector<uint8_t>& values, int r, double sigma) {
+  if (sigma <= 0.0) return values;
+  const int pad = int(std::ceil(3.0 * sigma)) + 1;
+  const cv::Mat plane(r, r, CV_8UC1, const_cast<uint8_t*>(values.data()));
+  cv::Mat padded, blurred;
+  cv::copyMakeBorder(plane, padded, pad, pad, pad, pad, cv::BORDER_WRAP);
+  cv::GaussianBlur(padded, blurred, cv::Size(0, 0), sigma, sigma, cv::BORDER_REPLICATE);
+  std::vector<uint8_t> out(values.size());
+  for (int y = 0; y < r; ++y)
+    for (int x = 0; x < r; ++x) out[texel_index(x, y, r)] = blurred.at<uint8_t>(y + pad, x + pad);
+  return out;
+}
+
+// Fills background components other than the largest (the network) smaller than `limit`
+// texels. Returns how many were filled; marks their texels 1.
+uint32_t fill_pin_holes(std::vector<uint8_t>& mask, int r, uint32_t limit, std::vector<uint8_t>& marks) {
+  std::vector<uint8_t> background(mask.size());
+  for (size_t i = 0; i < mask.size(); ++i) background[i] = mask[i] ? 0 : 1;
+  uint32_t count = 0;
+  const auto labels = label_components(background, r, count);
+  if (count < 2) return 0;
+  const auto sizes = label_sizes(labels, count);
+  const size_t network = size_t(std::max_element(sizes.begin(), sizes.end()) - sizes.begin());
+  uint32_t filled = 0;
+  std::vector<uint8_t> fill(count, 0);
+  for (size_t l = 0; l < count; ++l)
+    if (l != network && sizes[l] < limit) {
+      fill[l] = 1;
+      ++filled;
+    }
+  for (size_t i = 0; i < mask.size(); ++i)
+    if (labels[i] >= 0 && fill[size_t(labels[i])]) {
+      mask[i] = 1;
+      marks[i] = 1;
+    }
+  return filled;
+}
+
+struct UnionFind {
+  std::vector<int32_t> parent;
+  explicit UnionFind(size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
+  int32_t find(int32_t a) {
+    while (parent[size_t(a)] != a) a = parent[size_t(a)] = parent[size_t(parent[size_t(a)])];
+    return a;
+  }
+  void join(int32_t a, int32_t b) {
+    a = find(a);
+    b = find(b);
+    if (a != b) parent[size_t(std::max(a, b))] = std::min(a, b);  // smaller id wins: deterministic
+  }
+};
+
+// Step 5: splits touching features. Distance transform of the padded mask; per component,
+// the cores where the distance exceeds half its maximum are the markers (a thin bridge has a
+// small distance, so the two sides get separate cores); the watershed floods the rest of the
+// mask from them over the channel values. Labels of the padding are joined to those of the
+// texels they repeat, so a feature cut by the texture edge stays one.
+std::vector<int32_t> split_touching(const std::vector<uint8_t>& mask, const std::vector<uint8_t>& values, int r,
+                                    uint32_t& count, std::vector<uint8_t>& marks) {
+  const int pad = std::min(r, std::max(16, r / 4));
+  const int side = r + 2 * pad;
+  cv::Mat plane(r, r, CV_8UC1), value_plane(r, r, CV_8UC1, const_cast<uint8_t*>(values.data()));
+  for (size_t i = 0; i < mask.size(); ++i) plane.data[i] = mask[i] ? 255 : 0;
+  cv::Mat padded, padded_values;
+  cv::copyMakeBorder(plane, padded, pad, pad, pad, pad, cv::BORDER_WRAP);
+  cv::copyMakeBorder(value_plane, padded_values, pad, pad, pad, pad, cv::BORDER_WRAP);
+
+  cv::Mat distance, components;
+  cv::distanceTransform(padded, distance, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+  const int component_count = cv::connectedComponents(padded, components, 4, CV_32S);
+  std::vector<float> peak(size_t(component_count), 0.f);
+  for (int y = 0; y < side; ++y)
+    for (int x = 0; x < side; ++x) {
+      const int c = components.at<int32_t>(y, x);
+      if (c > 0) peak[size_t(c)] = std::max(peak[size_t(c)], distance.at<float>(y, x));
+    }
+  // A core is where the distance is at least 0.4 of its component's peak, or of the typical
+  // peak if that is lower: in two features merged through a gap, the smaller one keeps a core
+  // of its own (its peak may be below half the larger one's), while the gap, narrower than
+  // either, has none.
+  // Typical peak: area-weighted median over the components (specks barely count).
+  std::vector<uint64_t> area(size_t(component_count), 0);
+  for (int y = 0; y < side; ++y)
+    for (int x = 0; x < side; ++x) ++area[size_t(components.at<int32_t>(y, x))];
+  std::vector<std::pair<float, uint64_t>> peaks;
+  uint64_t total = 0;
+  for (int c = 1; c < component_count; ++c) peaks.emplace_back(peak[size_t(c)], area[size_t(c)]), total += area[size_t(c)];
+  std::sort(peaks.begin(), peaks.end());
+  float typical_peak = 0.f;
+  for (uint64_t running = 0; const auto& [p, a] : peaks)
+    if (2 * (running += a) >= total) {
+      typical_peak = p;
+      break;
+    }
+  constexpr float core_fraction = 0.4f;
+  cv::Mat cores(side, side, CV_8UC1, cv::Scalar(0));
+  for (int y = 0; y < side; ++y)
+    for (int x = 0; x < side; ++x) {
+      const int c = components.at<int32_t>(y, x);
+      if (c > 0 && distance.at<float>(y, x) >= core_fraction * std::min(peak[size_t(c)], std::max(typical_peak, 1.f)))
+        cores.at<uint8_t>(y, x) = 255;
+    }
+  cv::Mat markers;
+  cv::connectedComponents(cores, markers, 4, CV_32S);
+  // Watershed markers: 1 = background, 2.. = cores, 0 = to flood.
+  for (int y = 0; y < side; ++y)
+    for (int x = 0; x < side; ++x) {
+      int32_t& m = markers.at<int32_t>(y, x);
+      m = padded.at<uint8_t>(y, x) == 0 ? 1 : m > 0 ? m + 1 : 0;
+    }
+  cv::Mat colour;
+  cv::cvtColor(padded_values, colour, cv::COLOR_GRAY2BGR);
+  cv::watershed(colour, markers);
+
+  // Mask texels the flood left on a boundary (-1) or gave to the background (1) join the
+  // feature of a 4-neighbour, breadth first; split lines (boundaries between two cores) are
+  // marked for the debug image.
+  std::vector<size_t> frontier;
+  for (int y = 0; y < side; ++y)
+    for (int x = 0; x < side; ++x)
+      if (padded.at<uint8_t>(y, x) && markers.at<int32_t>(y, x) >= 2) frontier.push_back(size_t(y) * size_t(side) + size_t(x));
+  auto* m = reinterpret_cast<int32_t*>(markers.data);
+  std::vector<uint8_t> boundary(size_t(side) * size_t(side), 0);
+  for (size_t i = 0; i < boundary.size(); ++i) boundary[i] = m[i] == -1 && padded.data[i] ? 1 : 0;
+  std::vector<size_t> next;
+  while (!frontier.empty()) {
+    next.clear();
+    for (size_t i : frontier) {
+      const int x = int(i % size_t(side)), y = int(i / size_t(side));
+      for (int s = 0; s < 4; ++s) {
+        const int nx = x + k_step_x[s], ny = y + k_step_y[s];
+        if (nx < 0 || ny < 0 || nx >= side || ny >= side) continue;
+        const size_t n = size_t(ny) * size_t(side) + size_t(nx);
+        if (padded.data[n] && m[n] < 2) {
+          m[n] = m[i];
+          next.push_back(n);
+        }
+      }
+    }
+    frontier.swap(next);
+  }
+
+  double max_marker = 0.0;
+  cv::minMaxLoc(markers, nullptr, &max_marker);
+  UnionFind joined(size_t(max_marker) + 1);
+  // Padding within pad/2 of the texture: far enough from the outer edge that the flood there
+  // saw the same neighbourhood as the texels it repeats.
+  const int reach = std::max(1, pad / 2);
+  for (int y = pad - reach; y < pad + r + reach; ++y)
+    for (int x = pad - reach; x < pad + r + reach; ++x) {
+      const int32_t a = markers.at<int32_t>(y, x);
+      if (a < 2) continue;
+      const int32_t b = markers.at<int32_t>(wrap(y - pad, r) + pad, wrap(x - pad, r) + pad);
+      if (b >= 2) joined.join(a, b);
+    }
+  std::vector<int32_t> labels(mask.size(), k_background);
+  for (int y = 0; y < r; ++y)
+    for (int x = 0; x < r; ++x) {
+      const size_t p = size_t(y + pad) * size_t(side) + size_t(x + pad);
+      if (!mask[texel_index(x, y, r)] || m[p] < 2) continue;
+      labels[texel_index(x, y, r)] = joined.find(m[p]);
+      if (!boundary[p]) continue;
+      // A boundary texel between two different features is a split line.
+      bool split = false;
+      for (int s = 0; s < 4 && !split; ++s) {
+        const size_t n = size_t(y + pad + k_step_y[s]) * size_t(side) + size_t(x + pad + k_step_x[s]);
+        split = m[n] >= 2 && joined.find(m[n]) != joined.find(m[p]);
+      }
+      if (split) marks[texel_index(x, y, r)] = 3;
+    }
+  // Renumber 0..count-1 in row-major order of first texel.
+  std::vector<int32_t> renumber(size_t(max_marker) + 1, k_background);
+  count = 0;
+  for (int32_t& l : labels) {
+    if (l < 0) continue;
+    if (renumber[size_t(l)] == k_background) renumber[size_t(l)] = int32_t(count++);
+    l = renumber[size_t(l)];
+  }
+  return labels;
+}
+
+FeatureLabels label_mask(std::vector<uint8_t>& mask, const std::vector<uint8_t>& values, int r,
+                         const IsolationOptions& options, IsolationReport& rep) {
+  uint32_t count = 0;
+  auto components = label_components(mask, r, count);
+  const uint32_t typical = typical_area(label_sizes(components, count));
+  if (options.fill_holes) {
+    rep.holes_filled = fill_pin_holes(mask, r, std::max<uint32_t>(1, typical / 16), rep.marks);
+    if (rep.holes_filled) components = label_components(mask, r, count);
+  }
+  rep.components = count;
+
+  std::vector<int32_t> labels;
+  if (options.erode_texels > 0) {
+    labels = label_components(erode(mask, r, options.erode_texels), r, count);
+    grow_into_mask(labels, mask, r, options.erode_texels);
+  } else if (options.split_touching && count > 0) {
+    labels = split_touching(mask, values, r, count, rep.marks);
+  } else {
+    labels = std::move(components);
+  }
+  rep.split_added = count > rep.components ? count - rep.components : 0;
+
+  const auto sizes = label_sizes(labels, count);
+  rep.speck_limit = std::max(options.min_feature_texels,
+                             uint32_t(std::ceil(options.speck_fraction * double(typical_area(sizes)))));
+  for (size_t i = 0; i < labels.size(); ++i)
+    if (labels[i] >= 0 && sizes[size_t(labels[i])] < rep.speck_limit) rep.marks[i] = 2;
+  FeatureLabels result = compact_labels(std::move(labels), count, r, rep.speck_limit);
+  rep.specks_dropped = count - result.count;
+  return result;
+}
+
+struct Candidate {
+  FeatureLabels labels;
+  IsolationReport report;
+};
+
+// Steps 1-6 with the options' smoothing and background scale.
+Candidate isolate_once(const std::vector<uint8_t>& raw, int r, double sigma, double background_sigma,
+                       const IsolationOptions& options) {
+  Candidate c;
+  IsolationReport& rep = c.report;
+  rep.marks.assign(raw.size(), 0);
+  rep.smooth_sigma = sigma;
+  rep.background_sigma = background_sigma;
+  std::vector<uint8_t> values = smooth_wrapped(raw, r, sigma);
+  if (background_sigma > 0.0) {
+    // Shading removed: the value relative to its neighbourhood, centred on 128.
+    const auto background = smooth_wrapped(values, r, background_sigma);
+    for (size_t i = 0; i < values.size(); ++i)
+      values[i] = uint8_t(std::clamp(128 + int(values[i]) - int(background[i]), 0, 255));
+  }
+  c.labels.resolution = r;
+  c.labels.labels.assign(values.size(), k_background);
+  // Light side: value > cut, value and cut in 0..255 units. Otsu's level k becomes the cut
+  // k + 0.5, so the light and dark sides are complements.
+  if (options.threshold < 0.0) {
+    const std::optional<int> level = otsu_level(values);
+    if (!level) return c;  // a flat channel has no features on either side
+    rep.cut = *level + 0.5;
+  } else {
+    rep.cut = std::min(options.threshold, 1.0) * 255.0;
+  }
+  std::vector<uint8_t> light(values.size()), dark(values.size());
+  for (size_t i = 0; i < values.size(); ++i) {
+    light[i] = values[i] > rep.cut ? 1 : 0;
+    dark[i] = 1 - light[i];
+  }
+  rep.light_network_share = network_share(light, r);
+  rep.dark_network_share = network_share(dark, r);
+  rep.polarity_forced = options.polarity != IsolationOptions::Polarity::Auto;
+  rep.features_light = rep.polarity_forced ? options.polarity == IsolationOptions::Polarity::Light
+                                           : rep.dark_network_share >= rep.light_network_share;
+  c.labels = label_mask(rep.features_light ? light : dark, values, r, options, rep);
+  return c;
+}
+
+}  // namespace
+
+std::string IsolationReport::summary() const {
+  char text[640];
+  std::snprintf(text, sizeof text,
+                "%s features on %s (smoothed, sigma %.1f%s), cut %.1f/255; largest-component share of the light "
+                "side %.2f, dark side %.2f (%s); %u components, %u pin-holes filled, +%u split by the watershed, "
+                "%u specks dropped (< %u texels)",
+                features_light ? "light" : "dark", used_height ? "height" : "luminance", smooth_sigma,
+                background_sigma > 0.0 ? (", relative to a sigma " + std::to_string(int(std::lround(background_sigma))) +
+                                          " background").c_str()
+                                       : "",
+                cut, light_network_share, dark_network_share,
+                polarity_forced ? "polarity given" : "the other side is the network", components, holes_filled,
+                split_added, specks_dropped, speck_limit);
+  return text;
+}
+
+FeatureLabels isolate_features(const ImageRGBA8& albedo, const IsolationOptions& options, IsolationReport* report) {
+  TVT_CHECK(albedo.width > 0 && albedo.width == albedo.height);
+  TVT_CHECK(albedo.texels.size() == size_t(albedo.width) * size_t(albedo.height) * 4);
+  const int r = albedo.width;
+  bool height = options.channel == IsolationOptions::Channel::Height;
+  if (options.channel == IsolationOptions::Channel::Auto)
+    for (size_t i = 3; i < albedo.texels.size() && !height; i += 4) height = albedo.texels[i] != albedo.texels[3];
+  std::vector<uint8_t> raw(size_t(r) * size_t(r));
+  for (int y = 0; y < r; ++y)
+    for (int x = 0; x < r; ++x) {
+      const uint8_t* t = albedo.at(x, y);
+      raw[texel_index(x, y, r)] = height ? t[3] : luminance8(t);
+    }
+  Candidate c = isolate_once(raw, r, options.smooth_sigma, options.background_sigma, options);
+  c.report.used_height = height;
+  if (report) *report = std::move(c.report);
+  return std::move(c.labels);
+}
+
+FeatureLabels labels_from_mask(const ImageGray8& mask, uint32_t min_feature_texels) {
+  TVT_CHECK(mask.width > 0 && mask.width == mask.height);
+  TVT_CHECK(mask.texels.size() == size_t(mask.width) * size_t(mask.height));
+  std::vector<uint8_t> binary(mask.texels.size());
+  for (size_t i = 0; i < binary.size(); ++i) binary[i] = mask.texels[i] != 0 ? 1 : 0;
+  uint32_t count = 0;
+  auto labels = label_components(binary, mask.width, count);
+  return compact_labels(std::move(labels), count, mask.width, min_feature_texels);
+}
+
+}  // namespace tvt

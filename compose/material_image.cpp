@@ -1,0 +1,185 @@
+#include "compose/material_image.h"
+
+#include <OpenImageIO/imagebuf.h>
+#include <OpenImageIO/imagebufalgo.h>
+
+#include <Imath/ImathMatrix.h>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+
+namespace tvt {
+
+namespace {
+
+std::string size_text(int w, int h) { return std::to_string(w) + "x" + std::to_string(h); }
+
+bool alpha_varies(const ImageRGBA8& image) {
+  for (size_t i = 3; i < image.texels.size(); i += 4)
+    if (image.texels[i] != 255) return true;
+  return false;
+}
+
+HeightSource resolve(const MaterialImageOptions& o, int channels) {
+  if (o.height != HeightSource::Auto) return o.height;
+  if (!o.height_path.empty()) return HeightSource::File;
+  // Grey+alpha or RGBA: the alpha is looked at once the texels are read (constant 255 = none).
+  return channels == 2 || channels >= 4 ? HeightSource::Alpha : HeightSource::Luminance;
+}
+
+// A one-texel row or column has no texture to tile or isolate; far too large ones were refused
+// when the header was read (compose/image.h).
+Status check_size(const std::string& path, const ImageHeader& h) {
+  if (h.width < 2 || h.height < 2)
+    return make_error(path + ": image is " + std::to_string(h.width) + " x " + std::to_string(h.height) +
+                      " texels; a material image needs at least 2 x 2");
+  return Ok{};
+}
+
+Status check_height_path(const MaterialImageOptions& o, HeightSource source) {
+  if (source == HeightSource::File && o.height_path.empty())
+    return make_error("height source 'file' needs a height image");
+  return Ok{};
+}
+
+}  // namespace
+
+std::string_view to_string(HeightSource source) {
+  switch (source) {
+    case HeightSource::Auto: return "auto";
+    case HeightSource::Alpha: return "alpha";
+    case HeightSource::Luminance: return "luminance";
+    case HeightSource::File: return "file";
+    case HeightSource::None: return "none";
+  }
+  return "?";
+}
+
+std::optional<HeightSource> height_source_from_string(std::string_view text) {
+  for (HeightSource s : {HeightSource::Auto, HeightSource::Alpha, HeightSource::Luminance, HeightSource::File,
+                         HeightSource::None})
+    if (text == to_string(s)) return s;
+  return std::nullopt;
+}
+
+int material_resolution_for(int width, int height) {
+  TVT_CHECK(width >= 1 && height >= 1);
+  // Nearest power of two in log2 terms; + 0.5 then floor rounds halfway up.
+  const double log2_side = 0.5 * (std::log2(double(width)) + std::log2(double(height)));
+  const int exponent = int(std::floor(log2_side + 0.5));
+  return std::clamp(1 << std::clamp(exponent, 0, 30), k_min_material_resolution, k_max_material_resolution);
+}
+
+uint8_t luminance8(const uint8_t* rgb) {
+  return uint8_t(std::lround(0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]));
+}
+
+ImageRGBA8 resample_tileable(const ImageRGBA8& image, int resolution) {
+  TVT_CHECK(image.width > 0 && image.height > 0 && resolution > 0);
+  if (image.width == resolution && image.height == resolution) return image;
+  OIIO::ImageBuf src(OIIO::ImageSpec(image.width, image.height, 4, OIIO::TypeDesc::UINT8),
+                     const_cast<uint8_t*>(image.texels.data()));
+  OIIO::ImageBuf dst(OIIO::ImageSpec(resolution, resolution, 4, OIIO::TypeDesc::FLOAT));
+  // Pure scale; warp maps destination pixel centres back through its inverse, widens the
+  // filter by the minification and reads outside the source periodically.
+  const Imath::M33f scale(float(resolution) / float(image.width), 0.f, 0.f, 0.f,
+                          float(resolution) / float(image.height), 0.f, 0.f, 0.f, 1.f);
+  const bool ok = OIIO::ImageBufAlgo::warp(dst, src, scale, "lanczos3", 0.f, false, OIIO::ImageBuf::WrapPeriodic);
+  TVT_CHECK(ok);  // only fails on bad arguments, which the checks above exclude
+  std::vector<float> values(size_t(resolution) * size_t(resolution) * 4);
+  TVT_CHECK(dst.get_pixels(OIIO::ROI(0, resolution, 0, resolution, 0, 1, 0, 4), OIIO::TypeDesc::FLOAT, values.data()));
+  ImageRGBA8 out(resolution, resolution);
+  for (size_t i = 0; i < values.size(); ++i) {
+    // Lanczos overshoots at edges; the stored range is 0..1 (UINT8 normalised).
+    const float v = std::isfinite(values[i]) ? std::clamp(values[i], 0.f, 1.f) : 0.f;
+    out.texels[i] = uint8_t(std::lround(v * 255.f));
+  }
+  return out;
+}
+
+ImageGray8 resample_mask_nearest(const ImageRGBA8& mask, int resolution) {
+  TVT_CHECK(mask.width > 0 && mask.height > 0 && resolution > 0);
+  ImageGray8 out(resolution, resolution);
+  for (int y = 0; y < resolution; ++y)
+    for (int x = 0; x < resolution; ++x)
+      out.at(x, y) = mask.at(int(int64_t(x) * mask.width / resolution), int(int64_t(y) * mask.height / resolution))[0];
+  return out;
+}
+
+std::string MaterialImageReport::summary() const {
+  std::string s = size_text(source_width, source_height) + " (" + std::to_string(source_channels) + " ch) ";
+  s += resampled ? "resampled to " + size_text(resolution, resolution) + " (Lanczos-3, wrap)" : "used as it is";
+  s += ", height from " + std::string(to_string(height));
+  if (height_inverted) s += " (inverted)";
+  return s;
+}
+
+Result<int> material_image_resolution(const std::string& path, const MaterialImageOptions& o, bool* height_failed) {
+  if (height_failed) *height_failed = false;
+  auto h = read_image_header(path);
+  if (!h) return h.error();
+  if (auto s = check_size(path, *h); !s) return s.error();
+  const HeightSource source = resolve(o, h->channels);
+  if (auto s = check_height_path(o, source); !s) return make_error(path + ": " + s.error().message);
+  if (source == HeightSource::File) {
+    auto hh = read_image_header(o.height_path);
+    if (!hh || !check_size(o.height_path, *hh)) {
+      if (height_failed) *height_failed = true;
+      return hh ? check_size(o.height_path, *hh).error() : hh.error();
+    }
+  }
+  return o.resolution > 0 ? o.resolution : material_resolution_for(h->width, h->height);
+}
+
+Result<MaterialImage> load_material_image(const std::string& path, const MaterialImageOptions& o, bool* height_failed) {
+  if (height_failed) *height_failed = false;
+  auto header = read_image_header(path);
+  if (!header) return header.error();
+  if (auto s = check_size(path, *header); !s) return s.error();
+  auto read = read_image_rgba8(path);
+  if (!read) return read.error();
+  MaterialImage m;
+  MaterialImageReport& r = m.report;
+  r.source_width = read->width;
+  r.source_height = read->height;
+  r.source_channels = header->channels;
+  r.resolution = o.resolution > 0 ? o.resolution : material_resolution_for(read->width, read->height);
+  r.resampled = read->width != r.resolution || read->height != r.resolution;
+  HeightSource source = resolve(o, header->channels);
+  if (auto s = check_height_path(o, source); !s) return make_error(path + ": " + s.error().message);
+  if (source == HeightSource::Alpha && o.height == HeightSource::Auto && !alpha_varies(*read))
+    source = HeightSource::Luminance;  // an alpha channel that is 255 everywhere carries no height
+
+  ImageRGBA8 image = std::move(read.value());
+  if (source == HeightSource::Luminance || source == HeightSource::None) {
+    // Before resampling, so the filter sees the same texels for RGB and A.
+    for (size_t i = 0; i < image.texels.size(); i += 4) {
+      const uint8_t l = luminance8(&image.texels[i]);
+      image.texels[i + 3] = source == HeightSource::None ? uint8_t(255) : o.invert_height ? uint8_t(255 - l) : l;
+    }
+  }
+  m.image = resample_tileable(image, r.resolution);
+  if (source == HeightSource::File) {
+    auto h = read_image_float(o.height_path);
+    if (h && (h->width < 2 || h->height < 2)) h = check_size(o.height_path, {h->width, h->height, h->channels}).error();
+    if (!h) {
+      if (height_failed) *height_failed = true;
+      return h.error();
+    }
+    ImageRGBA8 height(h->width, h->height);
+    for (int y = 0; y < h->height; ++y)
+      for (int x = 0; x < h->width; ++x) {
+        const float v = std::clamp(h->at(x, y, 0), 0.f, 1.f);
+        uint8_t* t = height.at(x, y);
+        t[0] = t[1] = t[2] = t[3] = uint8_t(std::lround(v * 255.f));
+      }
+    const ImageRGBA8 resampled = resample_tileable(height, r.resolution);
+    for (size_t i = 3; i < m.image.texels.size(); i += 4) m.image.texels[i] = resampled.texels[i];
+  }
+  r.height = source;
+  r.height_inverted = source == HeightSource::Luminance && o.invert_height;
+  return m;
+}
+
+}  // namespace tvt
