@@ -45,24 +45,6 @@ Status check_height_path(const MaterialImageOptions& o, HeightSource source) {
 
 }  // namespace
 
-std::string_view to_string(HeightSource source) {
-  switch (source) {
-    case HeightSource::Auto: return "auto";
-    case HeightSource::Alpha: return "alpha";
-    case HeightSource::Luminance: return "luminance";
-    case HeightSource::File: return "file";
-    case HeightSource::None: return "none";
-  }
-  return "?";
-}
-
-std::optional<HeightSource> height_source_from_string(std::string_view text) {
-  for (HeightSource s : {HeightSource::Auto, HeightSource::Alpha, HeightSource::Luminance, HeightSource::File,
-                         HeightSource::None})
-    if (text == to_string(s)) return s;
-  return std::nullopt;
-}
-
 int material_resolution_for(int width, int height) {
   TVT_CHECK(width >= 1 && height >= 1);
   // Nearest power of two in log2 terms; + 0.5 then floor rounds halfway up.
