@@ -85,6 +85,12 @@ int parse(int argc, char** argv, Args& a) {
     if (flag == "--bench") { a.bench = true; continue; }
     if (flag == "--validation") { a.validation = true; continue; }
     if (flag == "--cpu-feedback") { a.cpu_feedback = true; continue; }
+    static const char* const kValueFlags[] = {
+        "--scene", "--method", "--out", "--page-table", "--extent-m", "--width", "--height", "--frames",
+        "--yaw-deg", "--pitch-deg", "--fov-deg", "--near", "--far", "--feedback-divisor", "--cache-slots",
+        "--page-budget", "--window", "--chunks", "--quads-per-chunk", "--position"};
+    if (std::find(std::begin(kValueFlags), std::end(kValueFlags), flag) == std::end(kValueFlags))
+      return usage_error("unknown flag " + flag);
     if (i + 1 >= argc) return usage_error(flag + ": needs a value");
     const char* v = argv[++i];
     bool ok = true;
