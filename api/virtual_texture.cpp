@@ -24,6 +24,12 @@ namespace {
 
 Error misuse(std::string message) { return Error{ErrorKind::misuse, std::move(message)}; }
 Error invalid(std::string message) { return Error{ErrorKind::invalid_argument, std::move(message)}; }
+// An internal error under the public API: a failed Vulkan call keeps its kind and VkResult;
+// anything else is the caller's input (invalid_argument).
+Error as_input_error(const Error& e, const std::string& prefix = "") {
+  if (e.vk_result != 0) return Error{e.kind, prefix + e.message, e.vk_result};
+  return invalid(prefix + e.message);
+}
 
 std::optional<tvt::VtSource> internal_source(PageSource s) {
   switch (s) {
@@ -124,7 +130,7 @@ Result<std::unique_ptr<VirtualTexture>> VirtualTexture::create(const DeviceHandl
     o.scene_hash = tvt::scene_identity(impl->assets.desc, *method);
   }
   auto vt = tvt::VtSystem::create(*impl->context, packed.value(), o);
-  if (!vt) return invalid(vt.error().message);
+  if (!vt) return as_input_error(vt.error());
   impl->vt = std::move(vt.value());
   if (desc.feedback_texels > 0) {
     tvt::FeedbackCompactor::Options fo;
@@ -135,8 +141,7 @@ Result<std::unique_ptr<VirtualTexture>> VirtualTexture::create(const DeviceHandl
     // and its begin_frame() read c.
     fo.ring_size = desc.frames_in_flight + 1;
     auto compactor = tvt::FeedbackCompactor::create(*impl->context, fo);
-    if (!compactor)
-      return invalid("VirtualTextureDesc::feedback_texels: " + compactor.error().message);
+    if (!compactor) return as_input_error(compactor.error(), "VirtualTextureDesc::feedback_texels: ");
     impl->compactor = std::move(compactor.value());
   }
   if (desc.producer) {
@@ -180,6 +185,8 @@ VirtualTextureBindings VirtualTexture::bindings() const {
 Status VirtualTexture::begin_frame(uint64_t frame, std::optional<uint64_t> completed, int64_t camera_texel_x,
                                    int64_t camera_texel_y, std::span<const PageRequest> requests) {
   Impl& m = *impl_;
+  // A failed Vulkan call (out of memory, device lost) stays: every call returns it.
+  if (auto st = m.context->status(); !st) return st;
   const std::string f = std::to_string(frame);
   if (!m.recorded)
     return misuse("begin_frame(" + f + "): record() did not follow begin_frame(" + std::to_string(*m.last_begun) + ")");
@@ -245,6 +252,8 @@ Status VirtualTexture::begin_frame(uint64_t frame, std::optional<uint64_t> compl
 
 Status VirtualTexture::record(VkCommandBuffer cmd) {
   Impl& m = *impl_;
+  // A failed Vulkan call (out of memory, device lost) stays: nothing is recorded any more.
+  if (auto st = m.context->status(); !st) return st;
   if (m.recorded)
     return misuse(m.last_begun ? "record(): frame " + std::to_string(*m.last_begun) + " was recorded already"
                                : std::string("record(): no frame begun (call begin_frame() first)"));
@@ -274,6 +283,7 @@ Status VirtualTexture::record(VkCommandBuffer cmd) {
 
 Status VirtualTexture::record_feedback(VkCommandBuffer cmd, VkBuffer feedback, VkDeviceSize offset) {
   Impl& m = *impl_;
+  if (auto st = m.context->status(); !st) return st;
   if (!m.compactor) return misuse("record_feedback(): VirtualTextureDesc::feedback_texels was 0 at create()");
   if (!m.last_begun) return misuse("record_feedback(): no frame begun (call begin_frame() first)");
   if (m.feedback_recorded)
@@ -285,7 +295,7 @@ Status VirtualTexture::record_feedback(VkCommandBuffer cmd, VkBuffer feedback, V
   m.compactor->record_unfenced(cmd, feedback, offset, m.compactions);
   m.compacted.emplace_back(*m.last_begun, m.compactions++);
   m.feedback_recorded = true;
-  return Ok{};
+  return m.context->status();
 }
 
 const FrameStats& VirtualTexture::stats() const { return impl_->stats; }

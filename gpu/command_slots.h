@@ -16,6 +16,8 @@ struct CommandSlot {
 };
 
 // A pool on the context's queue family with VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT.
+// A failed call latches its error on the context (Context::status()) and leaves the handle
+// empty: the owner checks status() once it has made every slot.
 VkCommandPool create_command_pool(const Context& context);
 CommandSlot create_command_slot(const Context& context, VkCommandPool pool);
 

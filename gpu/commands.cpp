@@ -1,17 +1,19 @@
 // One-shot submission for set-up, uploads and tests: run_commands() and upload().
 #include <algorithm>
 #include <cstring>
+#include <utility>
 
 #include "gpu/context.h"
 
 namespace tvt::vk {
 
 namespace {
-constexpr uint64_t kFenceTimeoutNs = 60ull * 1000 * 1000 * 1000;  // 60 s, then fatal
+constexpr uint64_t kFenceTimeoutNs = 60ull * 1000 * 1000 * 1000;  // 60 s, then an error
 constexpr VkDeviceSize kStagingChunkBytes = VkDeviceSize(16) << 20;  // upload() staging size
 }  // namespace
 
 void Context::run_commands(const std::function<void(VkCommandBuffer)>& record) {
+  if (!status()) return;  // a failed call before: nothing more is submitted
   if (deferring_) {
     deferred_.push_back(record);
     return;
@@ -21,31 +23,35 @@ void Context::run_commands(const std::function<void(VkCommandBuffer)>& record) {
   ai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
   ai.commandBufferCount = 1;
   VkCommandBuffer cmd = VK_NULL_HANDLE;
-  TVT_VK_CHECK(vkAllocateCommandBuffers(device_, &ai, &cmd));
+  if (!TVT_VK_OK(*this, vkAllocateCommandBuffers(device_, &ai, &cmd))) return;
+  VkFence fence = VK_NULL_HANDLE;
   auto bi = init<VkCommandBufferBeginInfo>(VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO);
   bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
-  TVT_VK_CHECK(vkBeginCommandBuffer(cmd, &bi));
-  record(cmd);
-  TVT_VK_CHECK(vkEndCommandBuffer(cmd));
-
   auto fci = init<VkFenceCreateInfo>(VK_STRUCTURE_TYPE_FENCE_CREATE_INFO);
-  VkFence fence = VK_NULL_HANDLE;
-  TVT_VK_CHECK(vkCreateFence(device_, &fci, alloc_, &fence));
   auto si = init<VkSubmitInfo>(VK_STRUCTURE_TYPE_SUBMIT_INFO);
   si.commandBufferCount = 1;
   si.pCommandBuffers = &cmd;
-  TVT_VK_CHECK(vkQueueSubmit(queue_, 1, &si, fence));
-  const VkResult r = vkWaitForFences(device_, 1, &fence, VK_TRUE, kFenceTimeoutNs);
-  if (r == VK_TIMEOUT) {
-    fatal(__FILE__, __LINE__, "vkWaitForFences", "run_commands: the GPU did not finish within 60 s (hang or device lost)");
+  bool submitted = false;
+  if (TVT_VK_OK(*this, vkBeginCommandBuffer(cmd, &bi))) {
+    record(cmd);
+    submitted = TVT_VK_OK(*this, vkEndCommandBuffer(cmd)) &&
+                TVT_VK_OK(*this, vkCreateFence(device_, &fci, alloc_, &fence)) &&
+                TVT_VK_OK(*this, vkQueueSubmit(queue_, 1, &si, fence));
   }
-  TVT_VK_CHECK(r);
-  vkDestroyFence(device_, fence, alloc_);
+  if (submitted) {
+    // VK_TIMEOUT after 60 s: a hung GPU is latched like a lost device.
+    if (!TVT_VK_OK(*this, vkWaitForFences(device_, 1, &fence, VK_TRUE, kFenceTimeoutNs))) {
+      // The command buffer may still be pending: leave it to the pool rather than free it.
+      vkDestroyFence(device_, fence, alloc_);
+      return;
+    }
+  }
+  if (fence != VK_NULL_HANDLE) vkDestroyFence(device_, fence, alloc_);
   vkFreeCommandBuffers(device_, command_pool_, 1, &cmd);
 }
 
 void Context::record_deferred_setup(VkCommandBuffer cmd) {
-  if (deferred_.empty()) return;
+  if (deferred_.empty() || !status()) return;
   for (const auto& record : deferred_) record(cmd);
   deferred_.clear();
   memory_barrier(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, VK_ACCESS_MEMORY_WRITE_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
@@ -53,12 +59,15 @@ void Context::record_deferred_setup(VkCommandBuffer cmd) {
 }
 
 void Context::upload(const Buffer& dst, const void* data, VkDeviceSize bytes, VkDeviceSize dst_offset) {
-  if (bytes == 0) return;
-  TVT_CHECK(dst.handle() != VK_NULL_HANDLE && data != nullptr);
+  // An empty dst: its creation failed (latched); nothing is uploaded after a failure.
+  if (bytes == 0 || !dst || !status()) return;
+  TVT_CHECK(data != nullptr);
   TVT_CHECK(dst_offset <= dst.size() && bytes <= dst.size() - dst_offset);
   if (deferring_) {
     // One staging buffer for the whole upload, kept until the client's command buffer ran.
-    deferred_staging_.push_back(create_buffer(bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true));
+    Buffer staging = create_buffer(bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true);
+    if (!staging) return;
+    deferred_staging_.push_back(std::move(staging));
     std::memcpy(deferred_staging_.back().mapped(), data, size_t(bytes));
     const VkBuffer src = deferred_staging_.back().handle(), to = dst.handle();
     deferred_.push_back([src, to, bytes, dst_offset](VkCommandBuffer cmd) {
@@ -69,9 +78,11 @@ void Context::upload(const Buffer& dst, const void* data, VkDeviceSize bytes, Vk
   }
   const VkDeviceSize chunk = std::min(bytes, kStagingChunkBytes);
   Buffer staging = create_buffer(chunk, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true);
+  if (!staging) return;
   const auto* src = static_cast<const unsigned char*>(data);
   for (VkDeviceSize done = 0; done < bytes; done += chunk) {
     const VkDeviceSize n = std::min(chunk, bytes - done);
+    if (!status()) return;
     std::memcpy(staging.mapped(), src + done, size_t(n));  // host writes: visible at submit
     run_commands([&](VkCommandBuffer cmd) {
       const VkBufferCopy region{0, dst_offset + done, n};

@@ -32,7 +32,7 @@ Result<std::unique_ptr<Context>> Context::adopt(const terravt::DeviceHandles& ha
   pci.queueFamilyIndex = ctx->queue_family_;
   if (VkResult r = vkCreateCommandPool(ctx->device_, &pci, ctx->alloc_, &ctx->command_pool_); r != VK_SUCCESS) {
     ctx->command_pool_ = VK_NULL_HANDLE;
-    return make_error(std::string("Vulkan: vkCreateCommandPool failed (") + result_name(r) + ")");
+    return vulkan_error(r, "vkCreateCommandPool");
   }
   return ctx;
 }
@@ -68,7 +68,27 @@ void Context::clear_validation_messages() {
   if (owned_) owned_->clear_messages();
 }
 
-void Context::wait_idle() { TVT_VK_CHECK(vkDeviceWaitIdle(device_)); }
+Status Context::status() const {
+  std::lock_guard lock(fault_mutex_);
+  if (fault_) return *fault_;
+  return Ok{};
+}
+
+bool Context::ok(VkResult result, const char* call) const {
+  if (result == VK_SUCCESS) return true;
+  std::string first;
+  {
+    std::lock_guard lock(fault_mutex_);
+    if (!fault_) {
+      fault_ = vulkan_error(result, call);
+      first = fault_->message;
+    }
+  }
+  if (!first.empty()) log(terravt::LogLevel::error, first);
+  return false;
+}
+
+void Context::wait_idle() { TVT_VK_OK(*this, vkDeviceWaitIdle(device_)); }
 
 uint32_t Context::memory_type(uint32_t allowed, VkMemoryPropertyFlags need, VkMemoryPropertyFlags fallback) const {
   for (VkMemoryPropertyFlags flags : {need, fallback}) {
@@ -76,12 +96,13 @@ uint32_t Context::memory_type(uint32_t allowed, VkMemoryPropertyFlags need, VkMe
       if ((allowed & (1u << i)) && (memory_properties_.memoryTypes[i].propertyFlags & flags) == flags) return i;
     }
   }
-  fatal(__FILE__, __LINE__, "memory_type", "no Vulkan memory type has the required properties");
+  return UINT32_MAX;  // none: the allocation that asks for it fails (create_buffer/create_image)
 }
 
 VkSampler Context::create_sampler(const VkSamplerCreateInfo& info) {
   VkSampler sampler = VK_NULL_HANDLE;
-  TVT_VK_CHECK(vkCreateSampler(device_, &info, alloc_, &sampler));
+  if (!status()) return VK_NULL_HANDLE;  // nothing more is made after a failed call
+  if (!TVT_VK_OK(*this, vkCreateSampler(device_, &info, alloc_, &sampler))) return VK_NULL_HANDLE;
   return sampler;
 }
 

@@ -22,6 +22,8 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <mutex>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -86,12 +88,27 @@ class Context {
   // Sends a diagnostic to the client's log callback (dropped when there is none).
   void log(terravt::LogLevel level, const std::string& message) const;
 
+  // Made by create() (terravt's own device, which it may wait on), not adopt() (a client's,
+  // which terravt never waits on).
+  bool owns_device() const { return owned_ != nullptr; }
+
   // Validation: only a Context made by create() with validation on records messages.
   bool validation_enabled() const;
   // Every validation (and other debug-utils warning/error) message since creation or since
   // the last clear_validation_messages().
   std::vector<std::string> validation_messages() const;
   void clear_validation_messages();
+
+  // Vulkan failures are errors, never aborts. The first of terravt's Vulkan calls on this
+  // context that fails (out of memory, device lost, a GPU that has not finished a wait within
+  // 60 s) is latched here and stays: from then on create_* hand back empty handles,
+  // run_commands() and upload() do nothing, and every runtime entry point (VtSystem::create and
+  // record, terravt::VirtualTexture, the frame loop) returns this error. What was made before
+  // stays valid to destroy. Thread-safe.
+  Status status() const;
+  // Latches `result` of `call` (its source text) when it is a failure; true on VK_SUCCESS.
+  // TVT_VK_OK(context, expr) passes the expression's text.
+  bool ok(VkResult result, const char* call) const;
 
   // vkDeviceWaitIdle: everything submitted to the device has finished. For terravt's own
   // tools and tests; library code never calls it on a client's device.
@@ -106,14 +123,15 @@ class Context {
   // Whether create_image() with these arguments (one mip) fits what the device allows for one
   // image: its format limits (extent, layers, maxResourceSize), the largest single allocation
   // (maxMemoryAllocationSize) and the device-local heap. The error starts with `what` and
-  // gives the image's size and the limit it exceeds, in MB. create_image() itself treats
-  // failure as fatal: call this first where a user's numbers set the size.
+  // gives the image's size and the limit it exceeds, in MB. create_image() only latches a
+  // failed allocation (status()): call this first where a user's numbers set the size.
   Status check_image_fits(VkFormat format, uint32_t width, uint32_t height, uint32_t layers, VkImageUsageFlags usage,
                           const std::string& what) const;
   ComputePipeline create_compute_pipeline(std::span<const uint32_t> spirv, std::span<const ComputeBinding> bindings,
                                           uint32_t push_constant_bytes = 0);
   DescriptorSet allocate_descriptor_set(const ComputePipeline& pipeline);
-  // Fatal when the device lacks dynamicRendering (Vulkan 1.3 core, always on for 1.3 devices).
+  // Needs dynamicRendering (Vulkan 1.3 core, always on for 1.3 devices; latched as an error
+  // otherwise).
   GraphicsPipeline create_graphics_pipeline(const GraphicsPipelineDesc& desc);
   DescriptorSet allocate_descriptor_set(const GraphicsPipeline& pipeline);
   // A sampler made with the context's allocation callbacks; destroy it with destroy_sampler().
@@ -170,6 +188,8 @@ class Context {
   VkPhysicalDeviceMemoryProperties memory_properties_{};
   VkDeviceSize max_allocation_bytes_ = 0;  // VkPhysicalDeviceVulkan11Properties::maxMemoryAllocationSize
   DeviceFeatures features_{};
+  mutable std::mutex fault_mutex_;
+  mutable std::optional<Error> fault_;  // the first failed Vulkan call (status())
 };
 
 }  // namespace tvt::vk

@@ -206,16 +206,23 @@ Result<std::unique_ptr<OwnedDevice>> OwnedDevice::create(const ContextOptions& o
   if (validation) {
     auto create_messenger = reinterpret_cast<PFN_vkCreateDebugUtilsMessengerEXT>(
         vkGetInstanceProcAddr(ctx->instance_, "vkCreateDebugUtilsMessengerEXT"));
-    TVT_CHECK(create_messenger != nullptr);
+    if (create_messenger == nullptr)
+      return make_error("Vulkan: the instance has no vkCreateDebugUtilsMessengerEXT although VK_EXT_debug_utils "
+                        "was enabled", ErrorKind::vulkan);
     VkDebugUtilsMessengerCreateInfoEXT mi = messenger_info(ctx->messages_.get());
-    TVT_VK_CHECK(create_messenger(ctx->instance_, &mi, nullptr, &ctx->messenger_));
+    if (VkResult r = create_messenger(ctx->instance_, &mi, nullptr, &ctx->messenger_); r != VK_SUCCESS) {
+      ctx->messenger_ = VK_NULL_HANDLE;
+      return vulkan_error(r, "vkCreateDebugUtilsMessengerEXT");
+    }
   }
 
   // --- physical device
   uint32_t count = 0;
-  TVT_VK_CHECK(vkEnumeratePhysicalDevices(ctx->instance_, &count, nullptr));
+  if (VkResult r = vkEnumeratePhysicalDevices(ctx->instance_, &count, nullptr); r != VK_SUCCESS)
+    return vulkan_error(r, "vkEnumeratePhysicalDevices");
   std::vector<VkPhysicalDevice> devices(count);
-  TVT_VK_CHECK(vkEnumeratePhysicalDevices(ctx->instance_, &count, devices.data()));
+  if (VkResult r = vkEnumeratePhysicalDevices(ctx->instance_, &count, devices.data()); r != VK_SUCCESS && r != VK_INCOMPLETE)
+    return vulkan_error(r, "vkEnumeratePhysicalDevices");
   devices.resize(count);
   if (devices.empty()) {
     return make_error("Vulkan: no Vulkan device found; install a GPU driver, or mesa-vulkan-drivers for the "

@@ -9,7 +9,7 @@
 namespace tvt {
 
 namespace {
-constexpr uint64_t k_fence_timeout_ns = 60ull * 1000 * 1000 * 1000;  // 60 s, then fatal
+constexpr uint64_t k_fence_timeout_ns = 60ull * 1000 * 1000 * 1000;  // 60 s, then an error (latched)
 constexpr uint32_t k_max_frames_in_flight = 8;
 }  // namespace
 
@@ -36,7 +36,8 @@ Result<std::unique_ptr<FrameRing>> FrameRing::create(vk::Context& context, uint3
     qci.sType = VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO;
     qci.queryType = VK_QUERY_TYPE_TIMESTAMP;
     qci.queryCount = k_queries_per_slot * frames_in_flight;
-    TVT_VK_CHECK(vkCreateQueryPool(device, &qci, context.allocation_callbacks(), &r->queries_));
+    if (!TVT_VK_OK(context, vkCreateQueryPool(device, &qci, context.allocation_callbacks(), &r->queries_)))
+      r->queries_ = VK_NULL_HANDLE;
     r->timestamps_ = context.create_buffer(sizeof(uint64_t) * k_queries_per_slot * frames_in_flight,
                                            VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
   }
@@ -47,6 +48,7 @@ Result<std::unique_ptr<FrameRing>> FrameRing::create(vk::Context& context, uint3
     s.fence = cs.fence;
     s.cmd = cs.cmd;
   }
+  if (auto st = context.status(); !st) return st.error();  // r's destructor frees what was made
   return r;
 }
 
@@ -56,7 +58,8 @@ FrameRing::~FrameRing() {
   // than for the fences.
   context_->wait_idle();
   const VkDevice device = context_->device();
-  for (Slot& s : slots_) vkDestroyFence(device, s.fence, context_->allocation_callbacks());
+  for (Slot& s : slots_)
+    if (s.fence != VK_NULL_HANDLE) vkDestroyFence(device, s.fence, context_->allocation_callbacks());
   if (queries_ != VK_NULL_HANDLE) vkDestroyQueryPool(device, queries_, context_->allocation_callbacks());
   if (pool_ != VK_NULL_HANDLE) vkDestroyCommandPool(device, pool_, context_->allocation_callbacks());
 }
@@ -86,17 +89,17 @@ VkCommandBuffer FrameRing::begin(uint64_t frame) {
   Slot& s = slots_[index];
   const VkDevice device = context_->device();
   const auto t0 = std::chrono::steady_clock::now();
-  const VkResult r = vkWaitForFences(device, 1, &s.fence, VK_TRUE, k_fence_timeout_ns);
-  if (r == VK_TIMEOUT) fatal(__FILE__, __LINE__, "vkWaitForFences", "frame ring: a frame did not finish within 60 s");
-  TVT_VK_CHECK(r);
+  if (!context_->status()) return VK_NULL_HANDLE;
+  // VK_TIMEOUT (a frame not finished within 60 s) is latched like a lost device.
+  if (!TVT_VK_OK(*context_, vkWaitForFences(device, 1, &s.fence, VK_TRUE, k_fence_timeout_ns))) return VK_NULL_HANDLE;
   last_wait_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   if (auto t = collect(s, index)) completed_.push_back(*t);
-  TVT_VK_CHECK(vkResetFences(device, 1, &s.fence));
-  TVT_VK_CHECK(vkResetCommandBuffer(s.cmd, 0));
   VkCommandBufferBeginInfo bi{};
   bi.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO;
   bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
-  TVT_VK_CHECK(vkBeginCommandBuffer(s.cmd, &bi));
+  if (!TVT_VK_OK(*context_, vkResetFences(device, 1, &s.fence)) || !TVT_VK_OK(*context_, vkResetCommandBuffer(s.cmd, 0)) ||
+      !TVT_VK_OK(*context_, vkBeginCommandBuffer(s.cmd, &bi)))
+    return VK_NULL_HANDLE;
   if (queries_ != VK_NULL_HANDLE) {
     vkCmdResetQueryPool(s.cmd, queries_, k_queries_per_slot * index, k_queries_per_slot);
     vkCmdWriteTimestamp(s.cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, queries_, k_queries_per_slot * index);
@@ -127,15 +130,20 @@ void FrameRing::submit(VkFence also_signal) {
     vk::Context::memory_barrier(s.cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
                                 VK_PIPELINE_STAGE_HOST_BIT, VK_ACCESS_HOST_READ_BIT);
   }
-  TVT_VK_CHECK(vkEndCommandBuffer(s.cmd));
+  recording_.reset();
   VkSubmitInfo si{};
   si.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
   si.commandBufferCount = 1;
   si.pCommandBuffers = &s.cmd;
-  TVT_VK_CHECK(vkQueueSubmit(context_->queue(), 1, &si, s.fence));
+  // After a failure nothing more is submitted; the slot's fence stays unsignalled (the
+  // destructor waits for the device, not for fences).
+  if (!context_->status() || !TVT_VK_OK(*context_, vkEndCommandBuffer(s.cmd)) ||
+      !TVT_VK_OK(*context_, vkQueueSubmit(context_->queue(), 1, &si, s.fence))) {
+    s.frame.reset();
+    return;
+  }
   // No work: the fence signals when everything submitted before it has completed.
-  if (also_signal != VK_NULL_HANDLE) TVT_VK_CHECK(vkQueueSubmit(context_->queue(), 0, nullptr, also_signal));
-  recording_.reset();
+  if (also_signal != VK_NULL_HANDLE) TVT_VK_OK(*context_, vkQueueSubmit(context_->queue(), 0, nullptr, also_signal));
 }
 
 std::vector<FrameTiming> FrameRing::take_completed() {
@@ -154,7 +162,8 @@ std::vector<FrameTiming> FrameRing::take_completed() {
 void FrameRing::wait_idle() {
   TVT_CHECK(!recording_);
   for (Slot& s : slots_)
-    if (s.frame) TVT_VK_CHECK(vkWaitForFences(context_->device(), 1, &s.fence, VK_TRUE, k_fence_timeout_ns));
+    if (s.frame && !TVT_VK_OK(*context_, vkWaitForFences(context_->device(), 1, &s.fence, VK_TRUE, k_fence_timeout_ns)))
+      return;
 }
 
 }  // namespace tvt

@@ -11,7 +11,7 @@
 // depth (VtSystem, GpuComposer, MaterialUploader and StoredProducer take frames_in_flight):
 // begin(f) returning means frame f-K has completed, so its part of every ring is free.
 //
-// Not thread-safe; uses the context's queue (serialise with other users, vk_context.h). The
+// Not thread-safe; uses the context's queue (serialise with other users, gpu/context.h). The
 // destructor waits for every submitted frame.
 #pragma once
 #include <cstdint>
@@ -43,6 +43,7 @@ class FrameRing {
 
   // Begins frame `frame` (greater than the previous one) in ring slot frame % K: waits until the
   // frame that last used the slot has completed, then returns its command buffer, recording.
+  // VK_NULL_HANDLE when a Vulkan call failed, now or before (context.status() says which).
   VkCommandBuffer begin(uint64_t frame);
   // Ends the current stage of the frame being recorded: a timestamp once every command recorded
   // so far has completed. At most k_max_marks per frame (more are ignored).
@@ -51,7 +52,7 @@ class FrameRing {
   // Ends and submits the command buffer begin() returned. `also_signal` (optional, unsignalled):
   // a fence of another owner that signals once this frame's commands have completed (an empty
   // submission right behind the frame's), e.g. the feedback compactor's for the compaction
-  // recorded into this frame.
+  // recorded into this frame. After a failure (context.status()) nothing is submitted.
   void submit(VkFence also_signal = VK_NULL_HANDLE);
   // Milliseconds the latest begin() blocked for the GPU (0 when the slot was free).
   double last_wait_ms() const { return last_wait_ms_; }

@@ -11,6 +11,7 @@ ComputePipeline Context::create_compute_pipeline(std::span<const uint32_t> spirv
                                                  uint32_t push_constant_bytes) {
   TVT_CHECK(!spirv.empty());
   TVT_CHECK(push_constant_bytes % 4 == 0);
+  if (!status()) return {};  // nothing more is made after a failed call
   ComputePipeline p;
   p.device_ = device_;
   p.alloc_ = alloc_;
@@ -23,7 +24,7 @@ ComputePipeline Context::create_compute_pipeline(std::span<const uint32_t> spirv
   auto dci = init<VkDescriptorSetLayoutCreateInfo>(VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO);
   dci.bindingCount = uint32_t(lb.size());
   dci.pBindings = lb.data();
-  TVT_VK_CHECK(vkCreateDescriptorSetLayout(device_, &dci, alloc_, &p.set_layout_));
+  if (!TVT_VK_OK(*this, vkCreateDescriptorSetLayout(device_, &dci, alloc_, &p.set_layout_))) return {};
 
   const VkPushConstantRange range{VK_SHADER_STAGE_COMPUTE_BIT, 0, push_constant_bytes};
   auto plci = init<VkPipelineLayoutCreateInfo>(VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO);
@@ -31,9 +32,10 @@ ComputePipeline Context::create_compute_pipeline(std::span<const uint32_t> spirv
   plci.pSetLayouts = &p.set_layout_;
   plci.pushConstantRangeCount = push_constant_bytes ? 1u : 0u;
   plci.pPushConstantRanges = &range;
-  TVT_VK_CHECK(vkCreatePipelineLayout(device_, &plci, alloc_, &p.layout_));
+  if (!TVT_VK_OK(*this, vkCreatePipelineLayout(device_, &plci, alloc_, &p.layout_))) return {};
 
   const VkShaderModule module = create_shader_module(spirv);
+  if (module == VK_NULL_HANDLE) return {};
 
   auto cpci = init<VkComputePipelineCreateInfo>(VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO);
   cpci.stage = init<VkPipelineShaderStageCreateInfo>(VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO);
@@ -43,23 +45,24 @@ ComputePipeline Context::create_compute_pipeline(std::span<const uint32_t> spirv
   cpci.layout = p.layout_;
   const VkResult r = vkCreateComputePipelines(device_, VK_NULL_HANDLE, 1, &cpci, alloc_, &p.pipeline_);
   vkDestroyShaderModule(device_, module, alloc_);
-  TVT_VK_CHECK(r);
+  if (!TVT_VK_OK(*this, r)) return {};
   return p;
 }
 
 DescriptorSet Context::allocate_descriptor_set(const ComputePipeline& pipeline) {
-  TVT_CHECK(pipeline.set_layout_ != VK_NULL_HANDLE);
+  if (pipeline.set_layout_ == VK_NULL_HANDLE) return {};  // the pipeline's creation failed (latched)
   std::vector<VkDescriptorType> types;
   for (const ComputeBinding& b : pipeline.bindings_) types.push_back(b.type);
   return allocate_set(pipeline.set_layout_, types);
 }
 
 DescriptorSet Context::allocate_descriptor_set(const GraphicsPipeline& pipeline) {
-  TVT_CHECK(pipeline.set_layout_ != VK_NULL_HANDLE);
+  if (pipeline.set_layout_ == VK_NULL_HANDLE) return {};  // the pipeline's creation failed (latched)
   return allocate_set(pipeline.set_layout_, pipeline.types_);
 }
 
 DescriptorSet Context::allocate_set(VkDescriptorSetLayout layout, std::span<const VkDescriptorType> types) {
+  if (!status()) return {};  // nothing more is made after a failed call
   DescriptorSet s;
   s.device_ = device_;
   s.alloc_ = alloc_;
@@ -77,12 +80,12 @@ DescriptorSet Context::allocate_set(VkDescriptorSetLayout layout, std::span<cons
   pci.maxSets = 1;
   pci.poolSizeCount = uint32_t(sizes.size());
   pci.pPoolSizes = sizes.data();
-  TVT_VK_CHECK(vkCreateDescriptorPool(device_, &pci, alloc_, &s.pool_));
+  if (!TVT_VK_OK(*this, vkCreateDescriptorPool(device_, &pci, alloc_, &s.pool_))) return {};
   auto ai = init<VkDescriptorSetAllocateInfo>(VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO);
   ai.descriptorPool = s.pool_;
   ai.descriptorSetCount = 1;
   ai.pSetLayouts = &layout;
-  TVT_VK_CHECK(vkAllocateDescriptorSets(device_, &ai, &s.set_));
+  if (!TVT_VK_OK(*this, vkAllocateDescriptorSets(device_, &ai, &s.set_))) return {};
   return s;
 }
 
@@ -92,15 +95,19 @@ VkShaderModule Context::create_shader_module(std::span<const uint32_t> spirv) {
   smci.codeSize = spirv.size_bytes();
   smci.pCode = spirv.data();
   VkShaderModule module = VK_NULL_HANDLE;
-  TVT_VK_CHECK(vkCreateShaderModule(device_, &smci, alloc_, &module));
+  if (!TVT_VK_OK(*this, vkCreateShaderModule(device_, &smci, alloc_, &module))) return VK_NULL_HANDLE;
   return module;
 }
 
 GraphicsPipeline Context::create_graphics_pipeline(const GraphicsPipelineDesc& desc) {
-  TVT_CHECK(features_.dynamic_rendering);
+  if (!features_.dynamic_rendering) {
+    ok(VK_ERROR_FEATURE_NOT_PRESENT, "vkCreateGraphicsPipelines (dynamicRendering is not enabled)");
+    return {};
+  }
   TVT_CHECK(!desc.vertex_spirv.empty() && !desc.fragment_spirv.empty());
   TVT_CHECK(desc.push_constant_bytes % 4 == 0);
   TVT_CHECK(!desc.color_formats.empty() || desc.depth_format != VK_FORMAT_UNDEFINED);
+  if (!status()) return {};  // nothing more is made after a failed call
   GraphicsPipeline p;
   p.device_ = device_;
   p.alloc_ = alloc_;
@@ -114,7 +121,7 @@ GraphicsPipeline Context::create_graphics_pipeline(const GraphicsPipelineDesc& d
   auto dci = init<VkDescriptorSetLayoutCreateInfo>(VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO);
   dci.bindingCount = uint32_t(lb.size());
   dci.pBindings = lb.data();
-  TVT_VK_CHECK(vkCreateDescriptorSetLayout(device_, &dci, alloc_, &p.set_layout_));
+  if (!TVT_VK_OK(*this, vkCreateDescriptorSetLayout(device_, &dci, alloc_, &p.set_layout_))) return {};
 
   const VkPushConstantRange range{desc.push_constant_stages, 0, desc.push_constant_bytes};
   auto plci = init<VkPipelineLayoutCreateInfo>(VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO);
@@ -122,10 +129,14 @@ GraphicsPipeline Context::create_graphics_pipeline(const GraphicsPipelineDesc& d
   plci.pSetLayouts = &p.set_layout_;
   plci.pushConstantRangeCount = desc.push_constant_bytes ? 1u : 0u;
   plci.pPushConstantRanges = &range;
-  TVT_VK_CHECK(vkCreatePipelineLayout(device_, &plci, alloc_, &p.layout_));
+  if (!TVT_VK_OK(*this, vkCreatePipelineLayout(device_, &plci, alloc_, &p.layout_))) return {};
 
   const VkShaderModule vs = create_shader_module(desc.vertex_spirv);
-  const VkShaderModule fs = create_shader_module(desc.fragment_spirv);
+  const VkShaderModule fs = vs == VK_NULL_HANDLE ? VK_NULL_HANDLE : create_shader_module(desc.fragment_spirv);
+  if (fs == VK_NULL_HANDLE) {
+    if (vs != VK_NULL_HANDLE) vkDestroyShaderModule(device_, vs, alloc_);
+    return {};
+  }
   // Fragment specialization constants: constant_id i = desc.fragment_constants[i] (32 bits each).
   std::vector<VkSpecializationMapEntry> spec_entries;
   for (uint32_t i = 0; i < desc.fragment_constants.size(); ++i)
@@ -200,7 +211,7 @@ GraphicsPipeline Context::create_graphics_pipeline(const GraphicsPipelineDesc& d
   const VkResult r = vkCreateGraphicsPipelines(device_, VK_NULL_HANDLE, 1, &gpci, alloc_, &p.pipeline_);
   vkDestroyShaderModule(device_, vs, alloc_);
   vkDestroyShaderModule(device_, fs, alloc_);
-  TVT_VK_CHECK(r);
+  if (!TVT_VK_OK(*this, r)) return {};
   return p;
 }
 
@@ -209,7 +220,8 @@ void DescriptorSet::write_buffer(uint32_t binding, VkDescriptorType type, const 
 }
 
 void DescriptorSet::write_buffer(uint32_t binding, VkDescriptorType type, VkBuffer buffer, VkDeviceSize offset) {
-  TVT_CHECK(set_ != VK_NULL_HANDLE && buffer != VK_NULL_HANDLE);
+  // An empty set or buffer: its creation failed, latched on the Context; nothing to write.
+  if (set_ == VK_NULL_HANDLE || buffer == VK_NULL_HANDLE) return;
   TVT_CHECK(type == VK_DESCRIPTOR_TYPE_STORAGE_BUFFER || type == VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER);
   const VkDescriptorBufferInfo info{buffer, offset, VK_WHOLE_SIZE};
   auto w = init<VkWriteDescriptorSet>(VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET);
@@ -222,7 +234,7 @@ void DescriptorSet::write_buffer(uint32_t binding, VkDescriptorType type, VkBuff
 }
 
 void DescriptorSet::write_image(uint32_t binding, VkDescriptorType type, const VkDescriptorImageInfo& info) {
-  TVT_CHECK(set_ != VK_NULL_HANDLE && info.imageView != VK_NULL_HANDLE);
+  if (set_ == VK_NULL_HANDLE || info.imageView == VK_NULL_HANDLE) return;  // creation failed (latched)
   auto w = init<VkWriteDescriptorSet>(VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET);
   w.dstSet = set_;
   w.dstBinding = binding;
@@ -237,7 +249,7 @@ void DescriptorSet::write_storage_image(uint32_t binding, const Image& image) {
 }
 
 void DescriptorSet::write_sampled_image(uint32_t binding, const Image& image, VkSampler sampler, VkImageLayout layout) {
-  TVT_CHECK(sampler != VK_NULL_HANDLE);
+  if (sampler == VK_NULL_HANDLE) return;  // its creation failed (latched on the Context)
   write_image(binding, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, {sampler, image.view(), layout});
 }
 

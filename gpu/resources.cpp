@@ -9,6 +9,7 @@ namespace tvt::vk {
 
 Buffer Context::create_buffer(VkDeviceSize size, VkBufferUsageFlags usage, bool host_visible) {
   TVT_CHECK(size > 0);
+  if (!status()) return {};  // nothing more is made after a failed call
   Buffer b;
   b.device_ = device_;
   b.alloc_ = alloc_;
@@ -17,7 +18,7 @@ Buffer Context::create_buffer(VkDeviceSize size, VkBufferUsageFlags usage, bool 
   bci.size = size;
   bci.usage = usage;
   bci.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
-  TVT_VK_CHECK(vkCreateBuffer(device_, &bci, alloc_, &b.buffer_));
+  if (!TVT_VK_OK(*this, vkCreateBuffer(device_, &bci, alloc_, &b.buffer_))) return {};
 
   VkMemoryRequirements req{};
   vkGetBufferMemoryRequirements(device_, b.buffer_, &req);
@@ -31,9 +32,15 @@ Buffer Context::create_buffer(VkDeviceSize size, VkBufferUsageFlags usage, bool 
   mai.pNext = &dedicated;
   mai.allocationSize = req.size;
   mai.memoryTypeIndex = memory_type(req.memoryTypeBits, need, fallback);
-  TVT_VK_CHECK(vkAllocateMemory(device_, &mai, alloc_, &b.memory_));
-  TVT_VK_CHECK(vkBindBufferMemory(device_, b.buffer_, b.memory_, 0));
-  if (host_visible) TVT_VK_CHECK(vkMapMemory(device_, b.memory_, 0, VK_WHOLE_SIZE, 0, &b.mapped_));
+  // A failure anywhere returns an empty Buffer (b frees what was made): a host-visible one is
+  // never handed back unmapped.
+  if (mai.memoryTypeIndex == UINT32_MAX) {
+    ok(VK_ERROR_OUT_OF_DEVICE_MEMORY, "vkAllocateMemory (no memory type with the required properties)");
+    return {};
+  }
+  if (!TVT_VK_OK(*this, vkAllocateMemory(device_, &mai, alloc_, &b.memory_))) return {};
+  if (!TVT_VK_OK(*this, vkBindBufferMemory(device_, b.buffer_, b.memory_, 0))) return {};
+  if (host_visible && !TVT_VK_OK(*this, vkMapMemory(device_, b.memory_, 0, VK_WHOLE_SIZE, 0, &b.mapped_))) return {};
   return b;
 }
 
@@ -74,9 +81,16 @@ Status Context::check_image_fits(VkFormat format, uint32_t width, uint32_t heigh
   // The memory it needs, as the device computes it (creating an image allocates nothing).
   const VkImageCreateInfo ici = image_create_info(format, width, height, layers, usage, 1);
   VkImage probe = VK_NULL_HANDLE;
-  if (vkCreateImage(device_, &ici, alloc_, &probe) != VK_SUCCESS)
+  if (VkResult r = vkCreateImage(device_, &ici, alloc_, &probe); r != VK_SUCCESS) {
+    if (r == VK_ERROR_OUT_OF_HOST_MEMORY || r == VK_ERROR_OUT_OF_DEVICE_MEMORY) {
+      ok(r, "vkCreateImage");  // latched like any failed call
+      Error e = vulkan_error(r, "vkCreateImage");
+      e.message = what + ": " + e.message;
+      return e;
+    }
     return make_error(what + ": the device cannot create a " + std::to_string(width) + "x" + std::to_string(height) +
                       " image of " + std::to_string(layers) + " layers");
+  }
   VkMemoryRequirements req{};
   vkGetImageMemoryRequirements(device_, probe, &req);
   vkDestroyImage(device_, probe, alloc_);
@@ -103,6 +117,7 @@ Image Context::create_image(VkFormat format, uint32_t width, uint32_t height, ui
                             VkImageUsageFlags usage, uint32_t mip_levels) {
   TVT_CHECK(width > 0 && height > 0 && layers > 0);
   TVT_CHECK(mip_levels >= 1 && mip_levels <= 32 && (std::max(width, height) >> (mip_levels - 1)) >= 1);
+  if (!status()) return {};  // nothing more is made after a failed call
   Image img;
   img.device_ = device_;
   img.alloc_ = alloc_;
@@ -113,7 +128,7 @@ Image Context::create_image(VkFormat format, uint32_t width, uint32_t height, ui
   img.mip_levels_ = mip_levels;
   img.synchronization2_ = features_.synchronization2;
   const VkImageCreateInfo ici = image_create_info(format, width, height, layers, usage, mip_levels);
-  TVT_VK_CHECK(vkCreateImage(device_, &ici, alloc_, &img.image_));
+  if (!TVT_VK_OK(*this, vkCreateImage(device_, &ici, alloc_, &img.image_))) return {};
 
   VkMemoryRequirements req{};
   vkGetImageMemoryRequirements(device_, img.image_, &req);
@@ -124,8 +139,12 @@ Image Context::create_image(VkFormat format, uint32_t width, uint32_t height, ui
   mai.allocationSize = req.size;
   mai.memoryTypeIndex =
       memory_type(req.memoryTypeBits, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0);
-  TVT_VK_CHECK(vkAllocateMemory(device_, &mai, alloc_, &img.memory_));
-  TVT_VK_CHECK(vkBindImageMemory(device_, img.image_, img.memory_, 0));
+  if (mai.memoryTypeIndex == UINT32_MAX) {
+    ok(VK_ERROR_OUT_OF_DEVICE_MEMORY, "vkAllocateMemory (no memory type with the required properties)");
+    return {};
+  }
+  if (!TVT_VK_OK(*this, vkAllocateMemory(device_, &mai, alloc_, &img.memory_))) return {};
+  if (!TVT_VK_OK(*this, vkBindImageMemory(device_, img.image_, img.memory_, 0))) return {};
 
   const VkImageUsageFlags viewable = VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_STORAGE_BIT |
                                      VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT |
@@ -136,7 +155,7 @@ Image Context::create_image(VkFormat format, uint32_t width, uint32_t height, ui
     vci.viewType = VK_IMAGE_VIEW_TYPE_2D_ARRAY;
     vci.format = format;
     vci.subresourceRange = {aspect_of(format), 0, mip_levels, 0, layers};
-    TVT_VK_CHECK(vkCreateImageView(device_, &vci, alloc_, &img.view_));
+    if (!TVT_VK_OK(*this, vkCreateImageView(device_, &vci, alloc_, &img.view_))) return {};
   }
   return img;
 }

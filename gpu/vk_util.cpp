@@ -23,6 +23,7 @@ const char* result_name(VkResult r) {
     case VK_ERROR_TOO_MANY_OBJECTS: return "VK_ERROR_TOO_MANY_OBJECTS";
     case VK_ERROR_FORMAT_NOT_SUPPORTED: return "VK_ERROR_FORMAT_NOT_SUPPORTED";
     case VK_ERROR_OUT_OF_POOL_MEMORY: return "VK_ERROR_OUT_OF_POOL_MEMORY";
+    case VK_ERROR_FRAGMENTED_POOL: return "VK_ERROR_FRAGMENTED_POOL";
     case VK_ERROR_VALIDATION_FAILED_EXT: return "VK_ERROR_VALIDATION_FAILED_EXT";
     default: return "VkResult (unnamed)";
   }
@@ -46,11 +47,16 @@ VkImageAspectFlags aspect_of(VkFormat f) {
   return a ? a : VkImageAspectFlags(VK_IMAGE_ASPECT_COLOR_BIT);
 }
 
-// What a physical device offers; `unsuitable` names the first missing requirement.
-
-void check_result(VkResult result, const char* file, int line, const char* expr) {
-  if (result == VK_SUCCESS) return;
-  fatal(file, line, expr, result_name(result));
+Error vulkan_error(VkResult result, std::string_view call) {
+  const std::string_view name = call.substr(0, call.find('('));
+  ErrorKind kind = ErrorKind::vulkan;
+  if (result == VK_ERROR_DEVICE_LOST) kind = ErrorKind::device_lost;
+  if (result == VK_ERROR_OUT_OF_HOST_MEMORY || result == VK_ERROR_OUT_OF_DEVICE_MEMORY ||
+      result == VK_ERROR_OUT_OF_POOL_MEMORY || result == VK_ERROR_FRAGMENTED_POOL)
+    kind = ErrorKind::out_of_memory;
+  Error e{kind, "Vulkan: " + std::string(name) + " failed with " + result_name(result)};
+  e.vk_result = int32_t(result);
+  return e;
 }
 
 }  // namespace tvt::vk

@@ -1,14 +1,21 @@
-// Internal helpers of the Vulkan layer (gpu/): the fatal check for calls that must not fail,
-// VkResult names, zeroed info structs and image aspects. Not part of the public API.
+// Internal helpers of the Vulkan layer (gpu/): failed Vulkan calls as errors, VkResult names,
+// zeroed info structs and image aspects. Not part of the public API.
 #pragma once
 #include <vulkan/vulkan.h>
 
+#include <string_view>
+
+#include "vt/result.h"
+
 namespace tvt::vk {
 
-// Fatal check for Vulkan calls that must not fail (two levels of errors: this for what only a
-// broken driver or a bug causes, Result<T> for what a user can cause).
-void check_result(VkResult result, const char* file, int line, const char* expr);
-#define TVT_VK_CHECK(expr) ::tvt::vk::check_result((expr), __FILE__, __LINE__, #expr)
+// The Error of a failed Vulkan call (`call`: the call's source text, of which the function
+// name is kept): kind device_lost for VK_ERROR_DEVICE_LOST, out_of_memory for the out-of-
+// memory results, vulkan otherwise; vk_result set. Vulkan failures are never fatal: the
+// Context latches the first one (Context::ok(), Context::status()).
+Error vulkan_error(VkResult result, std::string_view call);
+// context.ok(expr, "expr"): false (and the failure latched on `context`) when expr failed.
+#define TVT_VK_OK(context, expr) (context).ok((expr), #expr)
 
 // "VK_ERROR_DEVICE_LOST" etc.; "VkResult (unnamed)" for codes not listed.
 const char* result_name(VkResult result);

@@ -13,7 +13,8 @@
 //
 // Thread-safety: none; one thread records, submits and reads. submit(), read_blocking() and
 // time_compaction() use the context's queue (serialise them with other users of it, see
-// vk_context.h). The destructor waits for the compactor's pending fences.
+// gpu/context.h). The destructor waits for the device when terravt owns it (Context::create());
+// on a client's device (Context::adopt()) the client destroys it once the GPU is done.
 #pragma once
 #include <cstdint>
 #include <memory>
@@ -62,7 +63,8 @@ class FeedbackCompactor {
   void record_unfenced(VkCommandBuffer cmd, VkBuffer feedback, VkDeviceSize offset, uint64_t frame);
 
   // record() into the compactor's own command buffer for the slot, submitted on the context's
-  // queue. False when the ring slot is still in flight (nothing submitted). Never waits.
+  // queue. False when the ring slot is still in flight (nothing submitted) or a Vulkan call
+  // failed (latched on the context). Never waits.
   bool submit(const vk::Buffer& feedback, uint64_t frame);
 
   // The result of `frame` when its slot holds that frame and its fence has signalled
@@ -79,7 +81,8 @@ class FeedbackCompactor {
 
   // Benchmark: submits `repeats` compactions of `feedback` one at a time, each waited for, and
   // returns the median seconds per compaction (record + submit until the fence signalled, wall
-  // clock; the CPU-side parse and sort of the list is not included).
+  // clock; the CPU-side parse and sort of the list is not included). 0 after a failed Vulkan
+  // call (latched on the context).
   double time_compaction(const vk::Buffer& feedback, int repeats);
 
  private:

@@ -85,6 +85,7 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
     for (double c : cuts) fr.cut = fr.cut || (c > fr.time_s - 1.0 / o.fps && c <= fr.time_s && f > 0);
     // Back-pressure only: blocks when the GPU is frames_in_flight frames behind.
     VkCommandBuffer cmd = frames.begin(f);
+    if (cmd == VK_NULL_HANDLE) return g.status().error();  // a failed Vulkan call (out of memory, device lost)
     fr.wait_ms = frames.last_wait_ms();
     for (const FrameTiming& done : frames.take_completed()) {
       fr.gpu_ms = done.gpu_ms;
@@ -119,6 +120,7 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
     const VkFence compaction = compactor.value()->record(cmd, t.feedback_buffer(), f);
     frames.submit(compaction);  // the last stage: "compaction"
     v.end_frame();
+    if (auto st = g.status(); !st) return st.error();  // before anything of this frame is reported
     if (!recorded) {
       // A material could not be loaded on first use: stop before this frame is reported or
       // written anywhere; the error names the scene file, the field and the image file.
@@ -146,13 +148,17 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
       views.page_table = [&v] { return page_table_image(v.residency().page_table()); };
       views.feedback = [&g, &t] { return feedback_image(g, t.feedback_buffer(), t.feedback_width(), t.feedback_height()); };
       views.page_table_bytes = [&g, &v] { return page_table_bytes(g, v.entry_buffer()); };
-      if (!on_frame(fr, views)) break;
+      const bool go_on = on_frame(fr, views);
+      // A read-back that failed (latched) gave zeros: the run fails rather than keep them.
+      if (auto st = g.status(); !st) return st.error();
+      if (!go_on) break;
     }
   }
   sum.gpu_bytes = v.gpu_bytes();
   frames.wait_idle();
   sum.seconds = ms_between(start, std::chrono::steady_clock::now()) / 1000.0;
   g.wait_idle();
+  if (auto st = g.status(); !st) return st.error();
   return sum;
 }
 

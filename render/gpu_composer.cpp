@@ -28,6 +28,7 @@ Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, c
   c->culler_ = std::make_unique<MaterialCuller>(scene);
 
   c->params_buffer_ = context.create_buffer(sizeof(gpu::TvtComposeParams), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+  if (!c->params_buffer_) return context.status().error();
   std::memcpy(c->params_buffer_.mapped(), &c->params_, sizeof(c->params_));
   c->records_in_flight_ = std::max(options.records_in_flight, 1u);
   c->materials_ = std::make_unique<MaterialUploader>(context, scene, c->records_in_flight_);
@@ -73,13 +74,8 @@ Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, c
   c->descriptors_.write_buffer(TVT_BIND_WEIGHTS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->materials_->weights());
   c->descriptors_.write_buffer(TVT_BIND_PAGE_JOBS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->job_buffer_);
   c->descriptors_.write_storage_image(TVT_BIND_PAGE_OUTPUT, *c->target_);
+  if (auto st = context.status(); !st) return st.error();  // a failed Vulkan call (c frees what was made)
   return c;
-}
-
-const MaterialUploader& GpuComposer::all_materials() const {
-  const Status s = materials_->upload_all();
-  if (!s) fatal(__FILE__, __LINE__, "upload_all_materials()", s.error().message.c_str());
-  return *materials_;
 }
 
 void GpuComposer::set_params(const gpu::TvtComposeParams& params) {
@@ -91,6 +87,7 @@ void GpuComposer::set_params(const gpu::TvtComposeParams& params) {
 
 Status GpuComposer::record(VkCommandBuffer cmd, std::span<const PageJob> jobs) {
   TVT_CHECK(jobs.size() <= slots_);
+  if (auto st = context_->status(); !st) return st;  // nothing is recorded after a failed Vulkan call
   // This call's part of the job ring; the call that last used it has completed (contract).
   const uint32_t job_offset = uint32_t(records_++ % records_in_flight_) * slots_;
   auto* dst = static_cast<gpu::TvtPageJob*>(job_buffer_.mapped()) + job_offset;
@@ -120,6 +117,7 @@ Result<std::vector<std::vector<uint8_t>>> GpuComposer::compose_pages(std::span<c
   const size_t page_bytes = size_t(slot_texels_) * slot_texels_ * 4;
   if (!readback_buffer_ && !pages.empty())
     readback_buffer_ = context_->create_buffer(VkDeviceSize(page_bytes) * slots_, VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
+  if (!pages.empty() && !readback_buffer_) return context_->status().error();
   for (size_t first = 0; first < pages.size(); first += slots_) {
     const size_t count = std::min<size_t>(slots_, pages.size() - first);
     std::vector<PageJob> jobs(count);
@@ -137,6 +135,7 @@ Result<std::vector<std::vector<uint8_t>>> GpuComposer::compose_pages(std::span<c
       vk::Context::transition(cmd, *target_, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL);
     });
     if (!recorded) return recorded.error();
+    if (auto st = context_->status(); !st) return st.error();  // nothing ran
     const auto* src = static_cast<const uint8_t*>(readback_buffer_.mapped());
     for (size_t i = 0; i < count; ++i) out.emplace_back(src + i * page_bytes, src + (i + 1) * page_bytes);
   }
@@ -152,6 +151,7 @@ Result<double> GpuComposer::time_batch(std::span<const PageId> pages, int repeat
   for (int r = 0; r < repeats && recorded; ++r)
     context_->run_commands([&](VkCommandBuffer cmd) { recorded = record(cmd, jobs); });
   if (!recorded) return recorded.error();
+  if (auto st = context_->status(); !st) return st.error();
   const auto end = std::chrono::steady_clock::now();
   return std::chrono::duration<double>(end - start).count() / std::max(repeats, 1);
 }

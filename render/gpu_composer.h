@@ -72,18 +72,17 @@ class GpuComposer {
   // Times `repeats` batches of `pages` on the GPU (submit + wait), returns seconds per batch.
   Result<double> time_batch(std::span<const PageId> pages, int repeats);
 
-  // Loads and uploads every material (blocking, once; later calls return the same result):
-  // call before the buffer accessors below to get a load error as a Status instead of a fatal
-  // check. TerrainRenderer::create() does for its direct-splat pass.
+  // Loads and uploads every material (blocking, once; later calls return the same result): a
+  // pass that composes per pixel may read any material, so it calls this before it samples the
+  // buffers below (TerrainRenderer::create() does for its direct-splat pass).
   Status upload_all_materials() const { return materials_->upload_all(); }
 
-  // The scene buffers (compose_sample.glsl's inputs), for passes that compose per pixel: such
-  // a pass may read any material, so the material accessors first upload every material that
-  // is not on the GPU yet (blocking, once; a load error there is fatal: see upload_all_materials()).
+  // The scene buffers (compose_sample.glsl's inputs). Lazily filled: complete only once
+  // upload_all_materials() has returned Ok.
   const vk::Buffer& params_buffer() const { return params_buffer_; }
-  const vk::Buffer& material_buffer() const { return all_materials().texels(); }
-  const vk::Buffer& meta_buffer() const { return all_materials().meta(); }
-  const vk::Buffer& weight_buffer() const { return all_materials().weights(); }
+  const vk::Buffer& material_buffer() const { return materials_->texels(); }
+  const vk::Buffer& meta_buffer() const { return materials_->meta(); }
+  const vk::Buffer& weight_buffer() const { return materials_->weights(); }
 
   // Material upload counters (what is on the GPU, bytes copied; `last_*`: by the latest
   // record()). For per-frame statistics.
@@ -96,7 +95,6 @@ class GpuComposer {
 
  private:
   GpuComposer() = default;
-  const MaterialUploader& all_materials() const;
   vk::Context* context_ = nullptr;
   gpu::TvtComposeParams params_{};
   std::unique_ptr<MaterialCuller> culler_;

@@ -112,8 +112,7 @@ Status MaterialUploader::record(VkCommandBuffer cmd, const MaterialNeeds& needs)
   stats_.last_bytes = 0;
   if (all_resident()) return Ok{};
   if (auto s = load(needs.mask); !s) return s;
-  record_copies(cmd, needs, keep);
-  return Ok{};
+  return record_copies(cmd, needs, keep);
 }
 
 Status MaterialUploader::upload_all() {
@@ -129,12 +128,14 @@ Status MaterialUploader::upload_all() {
     MaterialNeeds one = all;
     one.mask = one.meta_mask = 1u << n;
     std::vector<vk::Buffer> keep;
-    context_->run_commands([&](VkCommandBuffer cmd) { record_copies(cmd, one, keep); });
+    Status copied = Ok{};
+    context_->run_commands([&](VkCommandBuffer cmd) { copied = record_copies(cmd, one, keep); });
+    if (!copied) return copied;
   }
-  return Ok{};
+  return context_->status();
 }
 
-void MaterialUploader::record_copies(VkCommandBuffer cmd, const MaterialNeeds& needs, std::vector<vk::Buffer>& keep) {
+Status MaterialUploader::record_copies(VkCommandBuffer cmd, const MaterialNeeds& needs, std::vector<vk::Buffer>& keep) {
   struct Piece {  // host range -> one of the three device buffers
     const void* src;
     size_t bytes;
@@ -170,10 +171,13 @@ void MaterialUploader::record_copies(VkCommandBuffer cmd, const MaterialNeeds& n
     stats_.resident_mask |= bit;
     if (m.resident_from == 0 && m.meta_resident) stats_.complete_mask |= bit;
   }
-  if (pieces.empty()) return;
+  if (pieces.empty()) return Ok{};
   size_t bytes = 0;
   for (const Piece& p : pieces) bytes += p.bytes;
   vk::Buffer staging = context_->create_buffer(VkDeviceSize(bytes), VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true);
+  // A failed allocation is latched on the context: the uploader (marked resident above) is
+  // not used again, every later call of the runtime returns that error.
+  if (!staging) return context_->status();
   auto* dst = static_cast<unsigned char*>(staging.mapped());
   std::vector<VkBufferCopy> regions[3];
   VkDeviceSize at = 0;
@@ -194,6 +198,7 @@ void MaterialUploader::record_copies(VkCommandBuffer cmd, const MaterialNeeds& n
   stats_.last_materials += uint32_t(std::popcount(touched));
   stats_.last_bytes += bytes;
   if (all_resident()) host_weights_ = {};  // nothing left to upload (the texels stay in the scene's cache)
+  return Ok{};
 }
 
 }  // namespace tvt

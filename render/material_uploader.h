@@ -89,7 +89,7 @@ class MaterialUploader {
   MaterialNeeds everything() const;
   // Records the copies of what `needs` names and is missing into `cmd`; the staging buffer
   // goes to `keep`. Updates the residency and the counters.
-  void record_copies(VkCommandBuffer cmd, const MaterialNeeds& needs, std::vector<vk::Buffer>& keep);
+  Status record_copies(VkCommandBuffer cmd, const MaterialNeeds& needs, std::vector<vk::Buffer>& keep);
 
   vk::Context* context_ = nullptr;
   std::vector<Material> materials_;

@@ -132,6 +132,7 @@ Result<std::unique_ptr<PlainTexture>> PlainTexture::create(vk::Context& context,
   si.maxLod = VK_LOD_CLAMP_NONE;
   t->sampler_ = context.create_sampler(si);
   t->seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (auto st = context.status(); !st) return st.error();  // a failed Vulkan call (latched)
   return t;
 }
 

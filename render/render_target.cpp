@@ -87,6 +87,10 @@ std::vector<uint8_t> RenderTarget::read_color(uint32_t index) const {
   const Image& img = colors_[index];
   const VkDeviceSize bytes = VkDeviceSize(desc_.width) * desc_.height * texel_bytes(img.format());
   Buffer staging = context_->create_buffer(bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
+  std::vector<uint8_t> out(static_cast<size_t>(bytes), 0);
+  // After a failed Vulkan call (latched: context.status()) the read-back is zeros; callers
+  // check the context's status before they use a frame.
+  if (!staging) return out;
   context_->run_commands([&](VkCommandBuffer cmd) {
     VkBufferImageCopy region{};
     region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
@@ -95,8 +99,7 @@ std::vector<uint8_t> RenderTarget::read_color(uint32_t index) const {
     vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
                                 VK_PIPELINE_STAGE_HOST_BIT, VK_ACCESS_HOST_READ_BIT);
   });
-  std::vector<uint8_t> out(static_cast<size_t>(bytes));
-  std::memcpy(out.data(), staging.mapped(), out.size());
+  if (context_->status()) std::memcpy(out.data(), staging.mapped(), out.size());
   return out;
 }
 

@@ -37,6 +37,7 @@ Result<std::unique_ptr<StoredProducer>> StoredProducer::create(vk::Context& cont
   const uint64_t page_bytes = d.page_bytes();
   p->staging_ = context.create_buffer(VkDeviceSize(page_bytes) * options.staging_slots,
                                       VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true);
+  if (!p->staging_) return context.status().error();
   std::span<uint8_t> staging(static_cast<uint8_t*>(p->staging_.mapped()), size_t(page_bytes) * options.staging_slots);
   PageLoaderOptions lo;
   lo.threads = options.threads;

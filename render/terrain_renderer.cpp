@@ -267,6 +267,7 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
       s.write_buffer(gpu::TVT_BIND_TERRAIN_FEEDBACK_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, r->feedback_params_buffer_);
     }
   }
+  if (auto st = context.status(); !st) return st.error();  // a failed Vulkan call (r frees what was made)
   return r;
 }
 
@@ -302,6 +303,7 @@ gpu::TvtTerrainFrame TerrainRenderer::frame_constants(const Camera& camera) cons
 }
 
 void TerrainRenderer::record(VkCommandBuffer cmd, const Camera& camera) {
+  if (!context_->status()) return;  // nothing is recorded after a failed Vulkan call (latched)
   const gpu::TvtTerrainFrame frame = frame_constants(camera);
   const FeedbackMode feedback = options_.vt ? options_.vt->feedback : FeedbackMode::None;
   // Earlier frames' shader reads of the frame buffer finish before it is overwritten (WAR:

@@ -41,7 +41,9 @@ Result<VtFrameStats> VtFrameDriver::frame(const Camera& camera) {
     recorded = vt_->record(cmd);  // a complete frame even when composition failed
     writer_->record(cmd, camera);
   });
-  TVT_CHECK(compactor_->submit(writer_->feedback_buffer(), frame_));  // the ring slot was read: free
+  const bool submitted = compactor_->submit(writer_->feedback_buffer(), frame_);
+  if (auto st = context_->status(); !st) return st.error();  // a failed Vulkan call (latched)
+  TVT_CHECK(submitted);  // the ring slot was read: free
   vt_->end_frame();
   ++frame_;
   // A material that could not be loaded on first use: the frame finished, the error names the

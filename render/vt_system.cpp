@@ -40,6 +40,7 @@ Result<std::unique_ptr<VtSystem>> VtSystem::create(vk::Context& context, const P
     return fits.error();
   auto cache = std::make_unique<vk::Image>(
       context.create_image(VK_FORMAT_R8G8B8A8_UNORM, vt.slot_texels(), vt.slot_texels(), options.cache_slots, usage));
+  if (!*cache) return context.status().error();  // the producers size themselves on it
   // By value: with deferred set-up (gpu/context.h) this runs after create() returned.
   context.run_commands([image = cache.get()](VkCommandBuffer cmd) {
     vk::Context::transition(cmd, *image, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL);
@@ -102,6 +103,7 @@ Result<std::unique_ptr<VtSystem>> VtSystem::create(vk::Context& context, const P
   si.addressModeU = si.addressModeV = si.addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
   si.maxLod = 0.f;
   v->sampler_ = context.create_sampler(si);
+  if (auto st = context.status(); !st) return st.error();  // a failed Vulkan call (v frees what was made)
   return v;
 }
 
@@ -160,6 +162,8 @@ void VtSystem::begin_frame(uint64_t frame, uint32_t camera_x, uint32_t camera_y,
 }
 
 Status VtSystem::record(VkCommandBuffer cmd) {
+  // After a failed Vulkan call (out of memory, device lost) nothing more is recorded.
+  if (auto st = context_->status(); !st) return st;
   // Earlier frames (possibly still in flight) sample the cache, entries and info that this
   // frame rewrites: their reads finish first (WAR, an execution dependency suffices).
   vkCmdPipelineBarrier(cmd,
@@ -207,6 +211,7 @@ Status VtSystem::record(VkCommandBuffer cmd) {
       VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT,
       VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
       VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_TRANSFER_READ_BIT);
+  if (auto st = context_->status(); !st) return st;  // failed while recording: it outranks a producer's error
   return produced;
 }
 

@@ -14,6 +14,7 @@
 
 #include "gpu/device_setup.h"
 #include "shared/test_types.h"
+#include "support/counting_allocator.h"
 #include "support/gpu_test.h"
 #include "terravt/terravt.h"
 
@@ -168,57 +169,6 @@ TEST(AdoptDevice, MissingOrWrongHandlesAreNamed) {
     EXPECT_FALSE(vk::Context::adopt(h).ok()) << c.what;
   }
 }
-
-// Allocation callbacks that count what is outstanding (a header before each block keeps its size).
-struct CountingAllocator {
-  std::mutex mutex;
-  std::unordered_map<void*, size_t> live;
-  size_t allocations = 0;
-
-  static void* allocate(void* user, size_t size, size_t alignment, VkSystemAllocationScope) {
-    auto* self = static_cast<CountingAllocator*>(user);
-    void* p = std::aligned_alloc(std::max<size_t>(alignment, alignof(std::max_align_t)),
-                                 (size + alignment - 1) / alignment * alignment);
-    std::lock_guard lock(self->mutex);
-    self->live[p] = size;
-    ++self->allocations;
-    return p;
-  }
-  static void* reallocate(void* user, void* old, size_t size, size_t alignment, VkSystemAllocationScope scope) {
-    auto* self = static_cast<CountingAllocator*>(user);
-    if (!old) return allocate(user, size, alignment, scope);
-    if (size == 0) {
-      release(user, old);
-      return nullptr;
-    }
-    void* p = allocate(user, size, alignment, scope);
-    size_t old_size = 0;
-    {
-      std::lock_guard lock(self->mutex);
-      old_size = self->live.at(old);
-    }
-    std::memcpy(p, old, std::min(old_size, size));
-    release(user, old);
-    return p;
-  }
-  static void release(void* user, void* p) {
-    if (!p) return;
-    auto* self = static_cast<CountingAllocator*>(user);
-    {
-      std::lock_guard lock(self->mutex);
-      self->live.erase(p);
-    }
-    std::free(p);
-  }
-  VkAllocationCallbacks callbacks() {
-    VkAllocationCallbacks cb{};
-    cb.pUserData = this;
-    cb.pfnAllocation = allocate;
-    cb.pfnReallocation = reallocate;
-    cb.pfnFree = release;
-    return cb;
-  }
-};
 
 TEST(AdoptDevice, AnAdoptedContextAllocatesThroughTheClientsCallbacksAndLeavesTheDeviceAlive) {
   auto device = client_device();

@@ -1,5 +1,8 @@
-// Two levels of errors: TVT_CHECK for what must not fail, Result<T> for what a
-// user can cause (bad scene, missing file, corrupt page). Error text names file and field.
+// Two levels of errors: Result<T> for everything a user, a file, the device or the driver can
+// cause (bad scene, missing file, corrupt page, API misuse, out of memory, device lost; Vulkan
+// failures are latched by gpu/context.h), and TVT_CHECK only for terravt's own invariants,
+// which no input and no call sequence reaches (a failed one is a terravt bug, not an error).
+// Error text names the file and the field.
 #pragma once
 #include <cstdio>
 #include <cstdlib>
