@@ -19,7 +19,7 @@ std::string describe(const PageTask& t) {
 tvt::ProducerAccept ClientProducer::request(const tvt::PageRequest& r) {
   switch (client_->request(task_of(r.page, r.slot))) {
     case ProducerAccept::accepted:
-      outstanding_[r.page.pack()] = r.slot;
+      outstanding_[r.page.pack()] = Owned{r.page, r.slot};
       return tvt::ProducerAccept::accepted;
     case ProducerAccept::unavailable: return tvt::ProducerAccept::unavailable;
     case ProducerAccept::busy: break;
@@ -30,8 +30,8 @@ tvt::ProducerAccept ClientProducer::request(const tvt::PageRequest& r) {
 void ClientProducer::cancel(const tvt::PageId& page) {
   const auto it = outstanding_.find(page.pack());
   if (it == outstanding_.end()) return;
-  client_->cancel(task_of(page, it->second));
-  cancelled_.push_back(tvt::PageRequest{page, it->second});
+  client_->cancel(task_of(page, it->second.slot));
+  cancelled_.push_back(tvt::PageRequest{page, it->second.slot});
   outstanding_.erase(it);
 }
 
@@ -46,11 +46,13 @@ tvt::Status ClientProducer::record(VkCommandBuffer cmd, tvt::ProducerOutcome& ou
     for (const PageTask& t : tasks) {
       const tvt::PageId page{t.mip, t.x, t.y};
       const auto it = outstanding_.find(page.pack());
-      if (it == outstanding_.end() || it->second != t.slot) {
+      // Field by field: pack() is only unique for pages of the VT, and a report may be anything.
+      if (it == outstanding_.end() || it->second.slot != t.slot || it->second.page.mip != t.mip ||
+          it->second.page.x != t.x || it->second.page.y != t.y) {
         if (contract.empty()) contract = describe(t) + " is not a page it accepted and still owns";
         continue;
       }
-      to.push_back(tvt::PageRequest{page, t.slot});
+      to.push_back(tvt::PageRequest{it->second.page, t.slot});
       outstanding_.erase(it);
     }
   };

@@ -29,7 +29,11 @@ class ClientProducer final : public tvt::PageProducer {
  private:
   std::shared_ptr<terravt::PageProducer> client_;
   uint32_t per_frame_ = 0;
-  std::unordered_map<uint64_t, uint32_t> outstanding_;  // accepted page -> its slot
+  struct Owned {
+    tvt::PageId page;  // as terravt asked for it (a client's report is compared field by field)
+    uint32_t slot = 0;
+  };
+  std::unordered_map<uint64_t, Owned> outstanding_;  // accepted pages by PageId::pack()
   std::vector<tvt::PageRequest> cancelled_;              // reported by the next record()
   std::vector<PageTask> written_, failed_;
   uint32_t written_count_ = 0;

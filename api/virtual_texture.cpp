@@ -26,6 +26,28 @@ Error misuse(std::string message) { return Error{ErrorKind::misuse, std::move(me
 Error invalid(std::string message) { return Error{ErrorKind::invalid_argument, std::move(message)}; }
 // An internal error under the public API: a failed Vulkan call keeps its kind and VkResult;
 // anything else is the caller's input (invalid_argument).
+// Marks the VirtualTexture busy for one call; a call made from inside it (a page producer's
+// callback calling back into the VirtualTexture) is misuse.
+class BusyGuard {
+ public:
+  explicit BusyGuard(bool& busy) : busy_(busy), entered_(!busy) { busy_ = true; }
+  ~BusyGuard() {
+    if (entered_) busy_ = false;
+  }
+  BusyGuard(const BusyGuard&) = delete;
+  BusyGuard& operator=(const BusyGuard&) = delete;
+  bool reentered() const { return !entered_; }
+
+ private:
+  bool& busy_;
+  bool entered_;
+};
+
+Error reentered(const char* call) {
+  return misuse(std::string(call) + ": called from inside another VirtualTexture call (a page producer's callback "
+                                    "may not call back into the VirtualTexture)");
+}
+
 Error as_input_error(const Error& e, const std::string& prefix = "") {
   if (e.vk_result != 0) return Error{e.kind, prefix + e.message, e.vk_result};
   return invalid(prefix + e.message);
@@ -59,6 +81,7 @@ struct VirtualTexture::Impl {
   std::deque<std::pair<uint64_t, uint64_t>> compacted;
   uint64_t compactions = 0;
   bool feedback_recorded = false;      // record_feedback() ran for the last frame begun
+  bool busy = false;  // inside a call: a producer's callback calling back in is refused
   std::optional<uint64_t> setup_frame;  // the frame that recorded the set-up; its staging lives until it completed
   // The set-up create() deferred goes first into whichever command buffer comes first.
   void record_setup(VkCommandBuffer cmd) {
@@ -185,6 +208,8 @@ VirtualTextureBindings VirtualTexture::bindings() const {
 Status VirtualTexture::begin_frame(uint64_t frame, std::optional<uint64_t> completed, int64_t camera_texel_x,
                                    int64_t camera_texel_y, std::span<const PageRequest> requests) {
   Impl& m = *impl_;
+  const BusyGuard guard(m.busy);
+  if (guard.reentered()) return reentered("begin_frame()");
   // A failed Vulkan call (out of memory, device lost) stays: every call returns it.
   if (auto st = m.context->status(); !st) return st;
   const std::string f = std::to_string(frame);
@@ -252,6 +277,8 @@ Status VirtualTexture::begin_frame(uint64_t frame, std::optional<uint64_t> compl
 
 Status VirtualTexture::record(VkCommandBuffer cmd) {
   Impl& m = *impl_;
+  const BusyGuard guard(m.busy);
+  if (guard.reentered()) return reentered("record()");
   // A failed Vulkan call (out of memory, device lost) stays: nothing is recorded any more.
   if (auto st = m.context->status(); !st) return st;
   if (m.recorded)
@@ -283,6 +310,8 @@ Status VirtualTexture::record(VkCommandBuffer cmd) {
 
 Status VirtualTexture::record_feedback(VkCommandBuffer cmd, VkBuffer feedback, VkDeviceSize offset) {
   Impl& m = *impl_;
+  const BusyGuard guard(m.busy);
+  if (guard.reentered()) return reentered("record_feedback()");
   if (auto st = m.context->status(); !st) return st;
   if (!m.compactor) return misuse("record_feedback(): VirtualTextureDesc::feedback_texels was 0 at create()");
   if (!m.last_begun) return misuse("record_feedback(): no frame begun (call begin_frame() first)");

@@ -55,6 +55,12 @@ class CheckerProducer final : public terravt::PageProducer {
   std::map<uint32_t, PageTask> in_slot;              // what each slot holds now
   uint32_t cancelled = 0;
   terravt::ProducerTarget target;
+  std::function<void(VkCommandBuffer)> on_record;    // called first thing in record()
+  std::vector<PageTask> pending_tasks() const {
+    std::vector<PageTask> out;
+    for (const Pending& p : pending_) out.push_back(p.task);
+    return out;
+  }
 
   terravt::Status attach(const terravt::ProducerTarget& t) override {
     target = t;
@@ -131,6 +137,7 @@ class CheckerProducer final : public terravt::PageProducer {
     for (Pending& p : pending_) p.due = frame_;
   }
   terravt::Status record(VkCommandBuffer cmd, std::vector<PageTask>& written, std::vector<PageTask>& failed) override {
+    if (on_record) on_record(cmd);
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_);
     vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_, 0, 1, &set_, 0, nullptr);
     std::vector<Pending> later;
@@ -362,6 +369,63 @@ TEST(PageProducer, AReportOfAPageItWasNotHandedIsMisuseAndIgnored) {
   EXPECT_EQ(run.records[0].error().kind, terravt::ErrorKind::misuse);
   EXPECT_NE(run.records[0].error().message.find("mip 0 page (1, 1) slot 0"), std::string::npos)
       << run.records[0].error().message;
+}
+
+// A report that aliases a page the producer accepted (the same packed id, another mip) is
+// caught field by field: misuse, ignored, and the real page still lands when it is done.
+TEST(PageProducer, AReportAliasingAnAcceptedPageIsMisuseAndTheRealPageStillLands) {
+  Client client(2);
+  ASSERT_TRUE(client.device);
+  auto producer = std::make_shared<CheckerProducer>(client.h.device);
+  auto created = terravt::VirtualTexture::create(client.h, producer_desc(producer));
+  ASSERT_TRUE(created.ok()) << created.error().message;
+  terravt::VirtualTexture& vt = **created;
+  const int64_t centre = int64_t(1) << (vt.info().log2_size - 1);
+  const std::vector<terravt::PageRequest> wanted = centre_requests(vt.info(), centre);
+  run_frames(client, vt, {}, 2);  // the pinned pages
+  producer->delay = 3;            // accepted now, written three frames later
+  run_frames(client, vt, wanted, 1, 2);
+  const std::vector<PageTask> pending = producer->pending_tasks();
+  ASSERT_FALSE(pending.empty());
+  for (uint32_t mip_shift : {64u, 128u}) {
+    PageTask alias = pending[0];
+    alias.mip += mip_shift;  // PageId::pack() keeps 6 bits of mip: this packs like pending[0]
+    producer->extra_written.push_back(alias);
+  }
+  const Frames run = run_frames(client, vt, wanted, 1, 3);
+  ASSERT_FALSE(run.records[0].ok());
+  EXPECT_EQ(run.records[0].error().kind, terravt::ErrorKind::misuse) << run.records[0].error().message;
+  const Frames rest = run_frames(client, vt, wanted, 4, 4);
+  for (const terravt::Status& s : rest.records) EXPECT_TRUE(s.ok()) << s.error().message;
+  const bool landed = std::any_of(producer->in_slot.begin(), producer->in_slot.end(), [&](const auto& s) {
+    return s.second == pending[0];
+  });
+  EXPECT_TRUE(landed);
+}
+
+// A producer's callback may not call back into the VirtualTexture: misuse, and the outer call
+// completes as usual.
+TEST(PageProducer, AProducerCallingBackIntoTheVirtualTextureIsMisuse) {
+  Client client(2);
+  ASSERT_TRUE(client.device);
+  auto producer = std::make_shared<CheckerProducer>(client.h.device);
+  auto created = terravt::VirtualTexture::create(client.h, producer_desc(producer));
+  ASSERT_TRUE(created.ok()) << created.error().message;
+  terravt::VirtualTexture& vt = **created;
+  std::vector<terravt::Status> inner;
+  producer->on_record = [&](VkCommandBuffer cmd) {
+    inner.push_back(vt.record(cmd));
+    inner.push_back(vt.begin_frame(100, std::nullopt, 0, 0, {}));
+  };
+  const Frames run = run_frames(client, vt, {}, 2);
+  for (const terravt::Status& s : run.records) EXPECT_TRUE(s.ok()) << s.error().message;
+  ASSERT_EQ(inner.size(), 4u);
+  for (const terravt::Status& s : inner) {
+    ASSERT_FALSE(s.ok());
+    EXPECT_EQ(s.error().kind, terravt::ErrorKind::misuse);
+    EXPECT_NE(s.error().message.find("inside another VirtualTexture call"), std::string::npos) << s.error().message;
+  }
+  EXPECT_GE(run.produced, 1u);
 }
 
 TEST(PageProducer, FeedbackWrittenOnTheGpuIsCompactedThereAndAsksForItsPages) {
