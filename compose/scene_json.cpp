@@ -404,7 +404,9 @@ std::string scene_to_json(const SceneDesc& s) {
     materials.push_back(j);
   }
   root["materials"] = materials;
-  return root.dump(2) + "\n";
+  // Paths keep their bytes; one that is not UTF-8 (a Latin-1 folder name) is written with
+  // U+FFFD in place of the bad bytes rather than thrown over.
+  return root.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";
 }
 
 }  // namespace tvt

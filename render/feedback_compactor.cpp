@@ -117,7 +117,11 @@ VkFence FeedbackCompactor::record(VkCommandBuffer cmd, const vk::Buffer& feedbac
   Slot& s = slots_[frame % slots_.size()];
   // The slot's last submission must be complete before its sets and list are reused; if it is
   // not, skip this frame's feedback instead of stalling.
-  if (!context_->status() || vkGetFenceStatus(context_->device(), s.fence) != VK_SUCCESS) return VK_NULL_HANDLE;
+  if (!context_->status()) return VK_NULL_HANDLE;
+  if (const VkResult r = vkGetFenceStatus(context_->device(), s.fence); r != VK_SUCCESS) {
+    if (r != VK_NOT_READY) TVT_VK_OK(*context_, r);  // VK_ERROR_DEVICE_LOST: latched
+    return VK_NULL_HANDLE;
+  }
   next_frame_ = frame + 1;
   if (!TVT_VK_OK(*context_, vkResetFences(context_->device(), 1, &s.fence))) return VK_NULL_HANDLE;
   record_slot(s, cmd, feedback.handle(), 0, frame);
@@ -170,14 +174,18 @@ void FeedbackCompactor::record_slot(Slot& s, VkCommandBuffer cmd, VkBuffer feedb
 bool FeedbackCompactor::submit(const vk::Buffer& feedback, uint64_t frame) {
   Slot& s = slots_[frame % slots_.size()];
   // Checked here too: the command buffer is re-recorded only when its last submission is done.
-  if (!context_->status() || vkGetFenceStatus(context_->device(), s.fence) != VK_SUCCESS) return false;
+  if (!context_->status()) return false;
+  if (const VkResult r = vkGetFenceStatus(context_->device(), s.fence); r != VK_SUCCESS) {
+    if (r != VK_NOT_READY) TVT_VK_OK(*context_, r);  // VK_ERROR_DEVICE_LOST: latched
+    return false;
+  }
   VkCommandBufferBeginInfo bi{};
   bi.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO;
   bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
   if (!TVT_VK_OK(*context_, vkResetCommandBuffer(s.own_cmd, 0)) || !TVT_VK_OK(*context_, vkBeginCommandBuffer(s.own_cmd, &bi)))
     return false;
   const VkFence fence = record(s.own_cmd, feedback, frame);
-  TVT_CHECK(fence != VK_NULL_HANDLE);
+  if (fence == VK_NULL_HANDLE) return false;  // a failed call (latched); the slot was checked free above
   VkSubmitInfo si{};
   si.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
   si.commandBufferCount = 1;

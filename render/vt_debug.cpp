@@ -29,8 +29,10 @@ ImageRGBA8 cache_atlas_image(vk::Context& context, const vk::Image& cache, uint3
     vkCmdCopyImageToBuffer(cmd, cache.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, host.handle(), 1, &region);
     vk::Context::transition(cmd, cache, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL);
   });
-  const auto* src = static_cast<const uint8_t*>(host.mapped());
   ImageRGBA8 out(int(cols * (cell + 1) + 1), int(rows * (cell + 1) + 1));
+  // After a failed Vulkan call (latched on the context; callers check its status) the image is black.
+  if (!host || !context.status()) return out;
+  const auto* src = static_cast<const uint8_t*>(host.mapped());
   for (uint32_t l = 0; l < n; ++l)
     for (uint32_t y = 0; y < cell; ++y)
       for (uint32_t x = 0; x < cell; ++x) {
@@ -82,8 +84,9 @@ ImageRGBA8 feedback_image(vk::Context& context, const vk::Buffer& feedback, uint
     const VkBufferCopy copy{0, 0, bytes};
     vkCmdCopyBuffer(cmd, feedback.handle(), host.handle(), 1, &copy);
   });
-  const auto* words = static_cast<const uint32_t*>(host.mapped());
   ImageRGBA8 out{int(width), int(height)};
+  if (!host || !context.status()) return out;  // a failed Vulkan call (latched): black
+  const auto* words = static_cast<const uint32_t*>(host.mapped());
   for (uint32_t i = 0; i < width * height; ++i) {
     uint8_t* d = &out.texels[size_t(i) * 4];
     d[3] = 255;
@@ -103,6 +106,7 @@ std::vector<uint8_t> page_table_bytes(vk::Context& context, const vk::Buffer& en
     vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_HOST_BIT,
                                 VK_ACCESS_HOST_READ_BIT);
   });
+  if (!host || !context.status()) return std::vector<uint8_t>(entries.size(), 0);  // a failed Vulkan call (latched)
   const auto* p = static_cast<const uint8_t*>(host.mapped());
   return std::vector<uint8_t>(p, p + entries.size());
 }

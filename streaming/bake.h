@@ -73,6 +73,8 @@ struct VerifyReport {
   uint64_t filter_checked = 0;  // filtered stores: coarse pages checked against the finer mip
   std::vector<std::string> problems;
 };
+// threads: 0 = one per core; at most k_max_verify_threads are started.
+inline constexpr uint32_t k_max_verify_threads = 256;
 Result<VerifyReport> verify_store(const std::string& path, uint32_t threads = 0);
 
 // `terravt verify --salvage OUT`: writes to `out` a new, valid whole store of every intact

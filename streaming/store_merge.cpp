@@ -1,6 +1,7 @@
 // merge_stores: shard stores -> the store a single bake of the whole plan writes, byte for byte.
 // Records are copied (after checking record header and blob hash), never recompressed.
 #include <chrono>
+#include <map>
 #include <memory>
 
 #include "streaming/bake.h"
@@ -38,7 +39,8 @@ Result<BakeSummary> merge_stores(std::span<const std::string> parts, const std::
   }
   const PageStoreReader& ref = *readers.front();
   const StoreLayout& rl = ref.layout();
-  std::vector<const PageStoreReader*> by_shard(rl.shard_count, nullptr);
+  // By shard index; a map, not a vector of shard_count: that count comes from a file.
+  std::map<uint32_t, const PageStoreReader*> by_shard;
   for (const auto& r : readers) {
     const StoreLayout& l = r->layout();
     if (const std::string field = desc_difference(r->desc(), ref.desc()); !field.empty())
@@ -48,20 +50,21 @@ Result<BakeSummary> merge_stores(std::span<const std::string> parts, const std::
                         " has " + std::to_string(rl.shard_count) + " (not shards of the same bake)");
     if (l.plan_pages != rl.plan_pages || l.plan_hash != rl.plan_hash)
       return make_error(r->path() + ": header plan_hash: another plan than " + ref.path() + " (not shards of the same bake)");
-    if (const PageStoreReader* other = by_shard[l.shard_index])
+    if (const auto it = by_shard.find(l.shard_index); it != by_shard.end())
       return make_error(r->path() + ": header shard_index: shard " + std::to_string(l.shard_index) + " of " +
-                        std::to_string(l.shard_count) + " is given twice (also " + other->path() + ")");
+                        std::to_string(l.shard_count) + " is given twice (also " + it->second->path() + ")");
     by_shard[l.shard_index] = r.get();
   }
-  for (uint32_t i = 0; i < rl.shard_count; ++i)
-    if (!by_shard[i]) {
-      const ShardRange sr = shard_range(rl.plan_pages, i, rl.shard_count);
+  // Every index below shard_count must be there: the first one missing is at most parts.size().
+  for (uint64_t i = 0; i < rl.shard_count && i <= parts.size(); ++i)
+    if (!by_shard.contains(uint32_t(i))) {
+      const ShardRange sr = shard_range(rl.plan_pages, uint32_t(i), rl.shard_count);
       return make_error(path + ": merge: shard " + std::to_string(i) + " of " + std::to_string(rl.shard_count) +
                         " (plan pages [" + std::to_string(sr.first) + ", +" + std::to_string(sr.count) + ")) is missing");
     }
   std::vector<PageId> plan;
   plan.reserve(rl.plan_pages);
-  for (const PageStoreReader* r : by_shard)
+  for (const auto& [index, r] : by_shard)
     for (const StoreEntry& e : r->entries()) plan.push_back(e.page);
   if (plan.size() != rl.plan_pages || plan_hash(plan) != rl.plan_hash)
     return make_error(path + ": merge: the shards' pages do not form their plan (plan_hash mismatch)");
@@ -72,7 +75,7 @@ Result<BakeSummary> merge_stores(std::span<const std::string> parts, const std::
   if (!opened) return opened.error();
   sf::StoreWriter& writer = opened.value();
   if (auto s = writer.start(sf::encode_header(header), desc.dictionary); !s) return s.error();
-  for (const PageStoreReader* r : by_shard) {
+  for (const auto& [index, r] : by_shard) {
     auto decoder = r->make_decoder();
     for (const StoreEntry& e : r->entries()) {
       std::string message;

@@ -50,7 +50,8 @@ Result<VerifyReport> verify_store(const std::string& path, uint32_t threads) {
   const bool filtered = report.pyramid == StorePyramid::filtered;
   std::atomic<uint64_t> filter_checked{0};
   const uint32_t workers =
-      std::clamp<uint32_t>(threads ? threads : std::thread::hardware_concurrency(), 1u, uint32_t(std::max<size_t>(entries.size(), 1)));
+      std::clamp<uint32_t>(threads ? threads : std::thread::hardware_concurrency(), 1u,
+                           std::min<uint32_t>(k_max_verify_threads, uint32_t(std::max<size_t>(entries.size(), 1))));
   std::atomic<size_t> next{0};
   std::atomic<uint64_t> ok{0};
   std::mutex mutex;

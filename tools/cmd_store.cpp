@@ -50,6 +50,9 @@ struct VerifyArgs {
 };
 
 int run_verify(const VerifyArgs& a) {
+  if (a.threads > k_max_verify_threads)
+    return fail("verify", "--threads: must be between 0 (one per core) and " + std::to_string(k_max_verify_threads) +
+                              ", got " + std::to_string(a.threads), 2);
   auto r = verify_store(a.store, a.threads);
   if (!r) return fail("verify", r.error().message, 1);
   const VerifyReport& v = r.value();
