@@ -1,6 +1,9 @@
 #include "compose/material_source.h"
 
 #include <algorithm>
+#include <atomic>
+#include <cstdio>
+#include <filesystem>
 #include <bit>
 #include <chrono>
 #include <cmath>
@@ -8,6 +11,7 @@
 #include "compose/material_image.h"
 #include "compose/procedural.h"
 #include "shaders/shared/hash.h"
+#include "streaming/store_format.h"
 
 namespace tvt {
 
@@ -123,6 +127,50 @@ Result<ImageRGBA8> load_albedo(const SceneDesc& d, size_t index, GeneratedMateri
   return std::move(img->image);
 }
 
+// Automatic isolation is the slow step of loading an FBPB image material (seconds for a 4096²
+// texture), so its meta-texture is cached next to the scene file, as
+// <scene folder>/.terravt-cache/meta-<key>.exr, the key an XXH3-64 of everything it is made
+// from: the resampled albedo, the variation map, the blur and k_isolation_version (bump it
+// whenever isolate_features() or its defaults change). Best effort: a missing, unreadable or
+// mismatched file is rebuilt and rewritten (atomically, so concurrent loads are safe); a
+// folder that cannot be written costs only the time. The built-in scene never uses it.
+constexpr uint32_t k_isolation_version = 2;
+constexpr double k_meta_blur_texels = 2.0;
+std::atomic<uint64_t> g_isolation_runs{0};
+
+std::string meta_cache_path(const SceneDesc& d, const ImageRGBA8& albedo, const ImageGray8& variation) {
+  if (d.base_dir.empty() || d.source_path == "<built-in>") return {};
+  const uint64_t parts[] = {k_isolation_version,
+                            uint64_t(albedo.width),
+                            uint64_t(albedo.height),
+                            store_format::hash(albedo.texels),
+                            uint64_t(variation.width),
+                            store_format::hash(variation.texels),
+                            std::bit_cast<uint64_t>(k_meta_blur_texels)};
+  const uint64_t key = store_format::hash({reinterpret_cast<const uint8_t*>(parts), sizeof(parts)});
+  char name[40];
+  std::snprintf(name, sizeof(name), "meta-%016llx.exr", static_cast<unsigned long long>(key));
+  return (std::filesystem::path(d.base_dir) / ".terravt-cache" / name).string();
+}
+
+MetaTexture isolated_meta(const SceneDesc& d, const ImageRGBA8& albedo, const ImageGray8& variation) {
+  const std::string cached = meta_cache_path(d, albedo, variation);
+  if (!cached.empty()) {
+    std::error_code ec;
+    if (std::filesystem::is_regular_file(cached, ec))
+      if (auto meta = read_meta_texture(cached); meta && meta->resolution == albedo.width) return std::move(meta.value());
+  }
+  ++g_isolation_runs;
+  const FeatureLabels labels = isolate_features(albedo, IsolationOptions{});  // the defaults of `terravt metatex`
+  MetaTexture meta = build_meta_texture(labels, variation, k_meta_blur_texels);
+  if (!cached.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(std::filesystem::path(cached).parent_path(), ec);
+    if (!ec) (void)write_meta_texture(cached, meta);  // best effort: a failure only costs the next load's time
+  }
+  return meta;
+}
+
 Result<std::optional<MetaTexture>> load_meta(const SceneDesc& d, size_t index, const ImageRGBA8& albedo,
                                              const GeneratedMaterial& generated, const MaterialImageReport& image) {
   const MaterialDesc& m = d.materials[index];
@@ -155,9 +203,9 @@ Result<std::optional<MetaTexture>> load_meta(const SceneDesc& d, size_t index, c
     labels.labels = generated.feature_labels;
     labels.count = generated.feature_count;
   } else {
-    labels = isolate_features(albedo, IsolationOptions{});  // the defaults of `terravt metatex`
+    return std::optional<MetaTexture>(isolated_meta(d, albedo, variation));
   }
-  return std::optional<MetaTexture>(build_meta_texture(labels, variation, 2.0));
+  return std::optional<MetaTexture>(build_meta_texture(labels, variation, k_meta_blur_texels));
 }
 
 MaterialInfo info_of(const MaterialAssets& a) {
@@ -171,6 +219,8 @@ MaterialInfo info_of(const MaterialAssets& a) {
 }
 
 }  // namespace
+
+uint64_t automatic_isolation_runs() { return g_isolation_runs.load(); }
 
 std::string scene_field(const SceneDesc& d, const std::string& pointer) { return d.source_path + ": " + pointer; }
 

@@ -121,6 +121,10 @@ class MaterialSource {
 
 // "<scene file>: <json pointer>", the prefix of every scene asset error.
 std::string scene_field(const SceneDesc& desc, const std::string& pointer);
+
+// How many times scene loading has run automatic feature isolation in this process (a cached
+// meta-texture next to the scene, .terravt-cache/, spares it): for tests.
+uint64_t automatic_isolation_runs();
 // Seeds of derived assets: a pure function of the scene seed and small integers, so every
 // asset is reproducible from the scene file alone.
 uint32_t derived_asset_seed(uint32_t scene_seed, uint32_t index, uint32_t purpose);
