@@ -9,8 +9,33 @@ Result<std::unique_ptr<StoredProducer>> StoredProducer::create(vk::Context& cont
                                                                const VtConfig& vt, uint64_t scene_hash,
                                                                const StoredProducerOptions& options) {
   TVT_CHECK(store != nullptr);
-  const std::string& path = store->path();
-  const StoreDesc& d = store->desc();
+  if (auto s = matches(*store, vt, scene_hash); !s) return s.error();
+  if (options.staging_slots < 1) return make_error("staging_slots: must be at least 1");
+  if (options.threads < 1) return make_error("loader threads: must be at least 1");
+  if (options.frames_in_flight < 1) return make_error("frames_in_flight: must be at least 1");
+
+  std::unique_ptr<StoredProducer> p(new StoredProducer());
+  p->context_ = &context;
+  p->store_ = std::move(store);
+  p->staging_slots_ = options.staging_slots;
+  p->slot_texels_ = vt.slot_texels();
+  p->to_release_.resize(options.frames_in_flight);
+  // Only layer 0 goes to the cache; a store with more layers is staged whole (page_bytes).
+  const uint64_t page_bytes = p->store_->desc().page_bytes();
+  p->staging_ = context.create_buffer(VkDeviceSize(page_bytes) * options.staging_slots,
+                                      VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true);
+  if (!p->staging_) return context.status().error();
+  std::span<uint8_t> staging(static_cast<uint8_t*>(p->staging_.mapped()), size_t(page_bytes) * options.staging_slots);
+  PageLoaderOptions lo;
+  lo.threads = options.threads;
+  lo.staging_slots = options.staging_slots;
+  p->loader_ = std::make_unique<PageLoader>(p->store_, lo, staging);
+  return p;
+}
+
+Status StoredProducer::matches(const PageStoreReader& store, const VtConfig& vt, uint64_t scene_hash) {
+  const std::string& path = store.path();
+  const StoreDesc& d = store.desc();
   auto mismatch = [&](const std::string& field, uint64_t have, uint64_t want) {
     return make_error(path + ": " + field + " is " + std::to_string(have) + " but the scene needs " +
                       std::to_string(want) + " (bake the store from this scene)");
@@ -23,27 +48,7 @@ Result<std::unique_ptr<StoredProducer>> StoredProducer::create(vk::Context& cont
   if (scene_hash != 0 && d.scene_hash != 0 && d.scene_hash != scene_hash)
     return make_error(path + ": scene_hash: the store was baked from another scene or method (producer '" +
                       d.producer + "'); its pages would not match this scene");
-  if (options.staging_slots < 1) return make_error("staging_slots: must be at least 1");
-  if (options.threads < 1) return make_error("loader threads: must be at least 1");
-  if (options.frames_in_flight < 1) return make_error("frames_in_flight: must be at least 1");
-
-  std::unique_ptr<StoredProducer> p(new StoredProducer());
-  p->context_ = &context;
-  p->store_ = std::move(store);
-  p->staging_slots_ = options.staging_slots;
-  p->slot_texels_ = vt.slot_texels();
-  p->to_release_.resize(options.frames_in_flight);
-  // Only layer 0 goes to the cache; a store with more layers is staged whole (page_bytes).
-  const uint64_t page_bytes = d.page_bytes();
-  p->staging_ = context.create_buffer(VkDeviceSize(page_bytes) * options.staging_slots,
-                                      VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true);
-  if (!p->staging_) return context.status().error();
-  std::span<uint8_t> staging(static_cast<uint8_t*>(p->staging_.mapped()), size_t(page_bytes) * options.staging_slots);
-  PageLoaderOptions lo;
-  lo.threads = options.threads;
-  lo.staging_slots = options.staging_slots;
-  p->loader_ = std::make_unique<PageLoader>(p->store_, lo, staging);
-  return p;
+  return Ok{};
 }
 
 StoredProducer::~StoredProducer() {

@@ -44,7 +44,10 @@ struct StoredFrameStats {
 
 class StoredProducer {
  public:
-  // The store must match the VT geometry; `scene_hash` (0: unchecked) must match the store's.
+  // Whether `store` holds this VT's pages: the same geometry, RGBA8 albedo+height in layer 0,
+  // and `scene_hash` (0: unchecked) equal to the store's. The error names the store and field.
+  static Status matches(const PageStoreReader& store, const VtConfig& vt, uint64_t scene_hash);
+  // The store must match (matches()).
   static Result<std::unique_ptr<StoredProducer>> create(vk::Context& context, std::shared_ptr<const PageStoreReader> store,
                                                         const VtConfig& vt, uint64_t scene_hash,
                                                         const StoredProducerOptions& options);

@@ -278,4 +278,29 @@ TEST_F(StoreCli, HybridRenderWithAnUnopenableStoreComposesEverythingUnlessStrict
   EXPECT_NE(output_.find("--strict: only used with --source hybrid"), std::string::npos) << output_;
 }
 
+// A store baked from another method (or scene) opens fine but holds other pages: hybrid treats
+// it as unusable (reported once, every page composed, exit 0); stored and --strict refuse it
+// before anything is written.
+TEST_F(StoreCli, HybridRenderWithAStoreOfAnotherMethodComposesEverythingUnlessStrict) {
+  ASSERT_EQ(run(bake_args(path("linear.tvt"))), 0) << output_;  // baked with --method linear
+  const std::string render = "TERRAVT_VALIDATION=1 " + std::string(TVT_TERRAVT_EXE) +
+                             " render --quiet --scene " + scene_ + " --frames 2 --every 1 --width 64 --height 36 "
+                             "--cache-slots 64 --page-budget 8 --method blendmap --store " + path("linear.tvt");
+  auto run_render = [&](const std::string& more) {
+    const std::string cmd = render + " " + more + " >" + path("log.txt") + " 2>&1";
+    const int status = std::system(cmd.c_str());
+    output_ = bytes(path("log.txt"));
+    return WEXITSTATUS(status);
+  };
+  EXPECT_EQ(run_render("--source hybrid --out " + path("degraded")), 0) << output_;
+  EXPECT_EQ(count_of(output_, "scene_hash"), 1u) << output_;  // reported once, naming the field
+  EXPECT_NE(output_.find("composing every page"), std::string::npos) << output_;
+  EXPECT_TRUE(fs::exists(path("degraded/frame_00001.png")));
+  EXPECT_EQ(run_render("--source hybrid --strict --out " + path("strict")), 2) << output_;
+  EXPECT_NE(output_.find("scene_hash"), std::string::npos) << output_;
+  EXPECT_FALSE(fs::exists(path("strict")));
+  EXPECT_EQ(run_render("--source stored --out " + path("stored")), 2) << output_;
+  EXPECT_FALSE(fs::exists(path("stored")));
+}
+
 }  // namespace

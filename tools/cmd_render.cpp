@@ -14,8 +14,10 @@
 #include <optional>
 
 #include "compose/packed_scene.h"
+#include "compose/scene_identity.h"
 #include "render/camera_file.h"
 #include "render/flythrough.h"
+#include "render/stored_producer.h"
 #include "streaming/file_io.h"
 #include "streaming/page_store.h"
 #include "tools/cli_common.h"
@@ -214,6 +216,17 @@ int run_render(const RenderArgs& a) {
   // Inputs first: a bad scene or a missing device leaves no output folder behind.
   auto assets = load_scene_and_assets(a.scene);
   if (!assets) return fail(cmd, assets.error().message, 2);
+  // A store of another scene, method or VT geometry is as unusable as one that cannot be opened.
+  if (store) {
+    if (auto s = StoredProducer::matches(*store, assets->desc.vt, scene_identity(assets->desc, *method)); !s) {
+      if (vt_source != VtSource::hybrid || a.strict) return fail(cmd, "--store: " + s.error().message, 2);
+      std::fprintf(stderr, "terravt render: --store: %s; composing every page instead (hybrid; --strict makes this an "
+                           "error)\n",
+                   s.error().message.c_str());
+      vt_source = VtSource::procedural;
+      store.reset();
+    }
+  }
   const uint32_t max_taps = std::max(1u, assets->desc.vt.border_texels);
   if (a.anisotropy < 1 || a.anisotropy > max_taps)
     return fail(cmd, "--anisotropy: must be between 1 and the scene's vt.border_texels (" + std::to_string(max_taps) + ")", 2);
