@@ -312,6 +312,13 @@ TEST_F(RenderCli, AFullDiskFailsTheRunNamingTheFileAndKeepsNothing) {
   EXPECT_NE(output_.find(out + "/frame_000"), std::string::npos) << output_;
   EXPECT_EQ(output_.find("wrote"), std::string::npos) << output_;
   EXPECT_FALSE(fs::exists(out)) << output_;
+  // Folders made above the output for it (and its lock) are gone too.
+  const std::string deep = path("made/for/out");
+  EXPECT_EQ(run("render --quiet --frames 10 --every 1 --width 160 --height 90 --cache-slots 64 --out " + deep,
+                "TERRAVT_FAULT_WRITE_AFTER=100000"),
+            1)
+      << output_;
+  EXPECT_FALSE(fs::exists(path("made"))) << output_;
   // The same run with room to spare completes.
   EXPECT_EQ(run("render --quiet --frames 10 --every 1 --width 160 --height 90 --cache-slots 64 --out " + out), 0) << output_;
   EXPECT_TRUE(fs::exists(fs::path(out) / "stats.jsonl"));

@@ -152,6 +152,10 @@ Result<OutputLock> OutputLock::acquire(const std::string& flag, const std::strin
   if (!target.has_filename()) target = target.parent_path();
   target = fs::weakly_canonical(target, ec);
   if (ec || target == target.root_path()) return make_error(flag + ": cannot use " + output + " as an output");
+  // The folders made for the output, deepest first: removed again when the run leaves them empty.
+  std::vector<std::string> made;
+  for (fs::path p = target.parent_path(); !p.empty() && p != p.root_path() && !fs::exists(p, ec); p = p.parent_path())
+    made.push_back(p.string());
   fs::create_directories(target.parent_path(), ec);
   if (ec) return make_error(flag + ": cannot create folder " + target.parent_path().string() + " (" + ec.message() + ")");
   std::string lock_path = target.string() + ".lock";
@@ -173,13 +177,16 @@ Result<OutputLock> OutputLock::acquire(const std::string& flag, const std::strin
     struct stat held {}, named {};
     if (::fstat(fd.get(), &held) == 0 && ::lstat(lock_path.c_str(), &named) == 0 && held.st_dev == named.st_dev &&
         held.st_ino == named.st_ino)
-      return OutputLock(lock_path, std::move(fd));
+      return OutputLock(lock_path, std::move(fd), std::move(made));
   }
   return make_error(flag + ": cannot lock " + lock_path + ": it keeps being replaced");
 }
 
 OutputLock::~OutputLock() {
-  if (fd_.get() >= 0) ::unlink(path_.c_str());  // before unlocking, so no later holder's file is removed
+  if (fd_.get() < 0) return;  // moved from
+  ::unlink(path_.c_str());  // before unlocking, so no later holder's file is removed
+  // rmdir removes only empty folders: those the run wrote into (or another run uses) stay.
+  for (const std::string& dir : made_) ::rmdir(dir.c_str());
 }
 
 int fail(const char* command, const std::string& message, int code) {

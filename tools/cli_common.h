@@ -5,6 +5,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
@@ -69,7 +70,8 @@ std::string check_image_output(const std::string& flag, const std::string& path,
 // Ownership of an output (a folder or a file) by one terravt process at a time: an exclusive
 // flock on "<output>.lock" beside it (fileio::lock_exclusive, the lock a bake takes on its
 // .partial), held until the object dies, which removes the lock file. Folders above the output
-// are created if missing (the lock file needs one); an existing output folder whose parent is
+// are created if missing (the lock file needs one) and removed with the lock when the run left
+// them empty (a run that failed leaves no trace); an existing output folder whose parent is
 // read-only holds its lock inside, as .terravt.lock. A second run on the same output is refused:
 // "<flag>: <output> is in use: <output>.lock: another terravt process holds it (locked) ...".
 class OutputLock {
@@ -81,9 +83,11 @@ class OutputLock {
   const std::string& path() const { return path_; }
 
  private:
-  OutputLock(std::string path, fileio::UniqueFd fd) : path_(std::move(path)), fd_(std::move(fd)) {}
+  OutputLock(std::string path, fileio::UniqueFd fd, std::vector<std::string> made)
+      : path_(std::move(path)), fd_(std::move(fd)), made_(std::move(made)) {}
   std::string path_;
   fileio::UniqueFd fd_;
+  std::vector<std::string> made_;  // folders acquire() created, deepest first; removed if left empty
 };
 
 // Prints "terravt <command>: <message>" to stderr and returns `code`.
