@@ -27,6 +27,15 @@ class StoreCli : public ::testing::Test {
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
   // Runs terravt; stdout+stderr land in `output_`.
   int run(const std::string& args) { return tvt::test::run_terravt(dir_, args, output_); }
+  // A small render of the scene with the validation layer on; stdout+stderr land in `output_`.
+  int render_with_validation(const std::string& args) {
+    const std::string cmd = "TERRAVT_VALIDATION=1 " + std::string(TVT_TERRAVT_EXE) + " render --quiet --scene " +
+                            scene_ + " --every 1 --width 64 --height 36 --cache-slots 64 --page-budget 8 " + args +
+                            " >" + path("log.txt") + " 2>&1";
+    const int status = std::system(cmd.c_str());
+    output_ = bytes(path("log.txt"));
+    return WEXITSTATUS(status);
+  }
   std::string bake_args(const std::string& out) const {
     return "bake --cpu --quiet --method linear --scene " + scene_ + " --out " + out;
   }
@@ -254,14 +263,8 @@ TEST_F(StoreCli, VerifySalvageWritesAValidStoreOfTheIntactRecords) {
 TEST_F(StoreCli, HybridRenderWithAnUnopenableStoreComposesEverythingUnlessStrict) {
   ASSERT_EQ(run(bake_args(path("good.tvt"))), 0) << output_;
   std::ofstream(path("trailing.tvt"), std::ios::binary) << bytes(path("good.tvt")) << "junk";
-  const std::string render = "TERRAVT_VALIDATION=1 " + std::string(TVT_TERRAVT_EXE) +
-                             " render --quiet --scene " + scene_ + " --frames 3 --every 1 --width 64 --height 36 "
-                             "--cache-slots 64 --page-budget 8 --store " + path("trailing.tvt");
-  auto run_render = [&](const std::string& more) {
-    const std::string cmd = render + " " + more + " >" + path("log.txt") + " 2>&1";
-    const int status = std::system(cmd.c_str());
-    output_ = bytes(path("log.txt"));
-    return WEXITSTATUS(status);
+  const auto run_render = [&](const std::string& more) {
+    return render_with_validation("--frames 3 --store " + path("trailing.tvt") + " " + more);
   };
   EXPECT_EQ(run_render("--source hybrid --out " + path("degraded")), 0) << output_;
   EXPECT_EQ(count_of(output_, "trailing.tvt"), 1u) << output_;  // reported once
@@ -283,14 +286,8 @@ TEST_F(StoreCli, HybridRenderWithAnUnopenableStoreComposesEverythingUnlessStrict
 // before anything is written.
 TEST_F(StoreCli, HybridRenderWithAStoreOfAnotherMethodComposesEverythingUnlessStrict) {
   ASSERT_EQ(run(bake_args(path("linear.tvt"))), 0) << output_;  // baked with --method linear
-  const std::string render = "TERRAVT_VALIDATION=1 " + std::string(TVT_TERRAVT_EXE) +
-                             " render --quiet --scene " + scene_ + " --frames 2 --every 1 --width 64 --height 36 "
-                             "--cache-slots 64 --page-budget 8 --method blendmap --store " + path("linear.tvt");
-  auto run_render = [&](const std::string& more) {
-    const std::string cmd = render + " " + more + " >" + path("log.txt") + " 2>&1";
-    const int status = std::system(cmd.c_str());
-    output_ = bytes(path("log.txt"));
-    return WEXITSTATUS(status);
+  const auto run_render = [&](const std::string& more) {
+    return render_with_validation("--frames 2 --method blendmap --store " + path("linear.tvt") + " " + more);
   };
   EXPECT_EQ(run_render("--source hybrid --out " + path("degraded")), 0) << output_;
   EXPECT_EQ(count_of(output_, "scene_hash"), 1u) << output_;  // reported once, naming the field
