@@ -35,28 +35,44 @@ size_t texel_index(int x, int y, int r) { return size_t(y) * size_t(r) + size_t(
 constexpr int k_step_x[4] = {1, -1, 0, 0};
 constexpr int k_step_y[4] = {0, 0, 1, -1};
 
-// Connected components of the non-zero texels of `mask` (4-connected on the torus). Labels are
-// numbered in row-major order of each component's first texel.
-std::vector<int32_t> label_components(const std::vector<uint8_t>& mask, int r, uint32_t& count) {
-  std::vector<int32_t> labels(mask.size(), k_background);
-  std::vector<size_t> queue;
-  count = 0;
-  for (size_t seed = 0; seed < mask.size(); ++seed) {
-    if (!mask[seed] || labels[seed] != k_background) continue;
-    const int32_t id = int32_t(count++);
-    labels[seed] = id;
-    queue.assign(1, seed);
-    for (size_t head = 0; head < queue.size(); ++head) {
-      const int x = int(queue[head] % size_t(r));
-      const int y = int(queue[head] / size_t(r));
-      for (int s = 0; s < 4; ++s) {
-        const size_t n = texel_index(wrap(x + k_step_x[s], r), wrap(y + k_step_y[s], r), r);
-        if (mask[n] && labels[n] == k_background) {
-          labels[n] = id;
-          queue.push_back(n);
-        }
-      }
+struct UnionFind {
+  std::vector<int32_t> parent;
+  explicit UnionFind(size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
+  int32_t find(int32_t a) {
+    while (parent[size_t(a)] != a) a = parent[size_t(a)] = parent[size_t(parent[size_t(a)])];
+    return a;
+  }
+  void join(int32_t a, int32_t b) {
+    a = find(a);
+    b = find(b);
+    if (a != b) parent[size_t(std::max(a, b))] = std::min(a, b);  // smaller id wins: deterministic
+  }
+};
+
+// Connected components of the non-zero texels of `mask` (4- or 8-connected on the torus):
+// OpenCV's labelling of the plane, then the labels that meet across the texture's edges joined.
+// Labels are numbered in row-major order of each component's first texel.
+std::vector<int32_t> label_components(const std::vector<uint8_t>& mask, int r, uint32_t& count,
+                                      int connectivity = 4) {
+  const cv::Mat plane(r, r, CV_8UC1, const_cast<uint8_t*>(mask.data()));
+  cv::Mat plane_labels;
+  const int n = cv::connectedComponents(plane, plane_labels, connectivity, CV_32S);  // 0: background
+  const auto* l = reinterpret_cast<const int32_t*>(plane_labels.data);
+  auto at = [&](int x, int y) { return l[texel_index(wrap(x, r), wrap(y, r), r)]; };
+  UnionFind joined(size_t(std::max(n, 1)));
+  const int reach = connectivity == 8 ? 1 : 0;  // diagonal neighbours across the edges
+  for (int i = 0; i < r; ++i)
+    for (int d = -reach; d <= reach; ++d) {
+      if (const int32_t a = at(r - 1, i), b = at(0, i + d); a && b) joined.join(a, b);
+      if (const int32_t a = at(i, r - 1), b = at(i + d, 0); a && b) joined.join(a, b);
     }
+  std::vector<int32_t> labels(mask.size(), k_background), renumber(size_t(std::max(n, 1)), k_background);
+  count = 0;
+  for (size_t i = 0; i < mask.size(); ++i) {
+    if (!l[i]) continue;
+    const int32_t root = joined.find(l[i]);
+    if (renumber[size_t(root)] == k_background) renumber[size_t(root)] = int32_t(count++);
+    labels[i] = renumber[size_t(root)];
   }
   return labels;
 }
@@ -182,12 +198,26 @@ uint32_t typical_area(std::vector<uint32_t> sizes) {
 }
 
 // Share of the side's texels in its largest component (0 for an empty side).
+// Only sizes are needed: OpenCV's areas of the plane's components, summed over the components
+// joined across the edges (4-connected, as label_components).
 double network_share(const std::vector<uint8_t>& side, int r) {
-  uint32_t count = 0;
-  const auto labels = label_components(side, r, count);
-  const auto sizes = label_sizes(labels, count);
-  const uint64_t total = std::accumulate(sizes.begin(), sizes.end(), uint64_t(0));
-  if (total == 0) return 0.0;
+  const cv::Mat plane(r, r, CV_8UC1, const_cast<uint8_t*>(side.data()));
+  cv::Mat plane_labels, stats, centroids;
+  const int n = cv::connectedComponentsWithStats(plane, plane_labels, stats, centroids, 4, CV_32S);
+  if (n < 2) return 0.0;
+  const auto* l = reinterpret_cast<const int32_t*>(plane_labels.data);
+  UnionFind joined{size_t(n)};
+  for (int i = 0; i < r; ++i) {
+    if (const int32_t a = l[texel_index(r - 1, i, r)], b = l[texel_index(0, i, r)]; a && b) joined.join(a, b);
+    if (const int32_t a = l[texel_index(i, r - 1, r)], b = l[texel_index(i, 0, r)]; a && b) joined.join(a, b);
+  }
+  std::vector<uint64_t> sizes(size_t(n), 0);
+  uint64_t total = 0;
+  for (int c = 1; c < n; ++c) {
+    const auto area = uint64_t(stats.at<int32_t>(c, cv::CC_STAT_AREA));
+    sizes[size_t(joined.find(c))] += area;
+    total += area;
+  }
   return double(*std::max_element(sizes.begin(), sizes.end())) / double(total);
 }
 
@@ -230,28 +260,18 @@ uint32_t fill_pin_holes(std::vector<uint8_t>& mask, int r, uint32_t limit, std::
   return filled;
 }
 
-struct UnionFind {
-  std::vector<int32_t> parent;
-  explicit UnionFind(size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
-  int32_t find(int32_t a) {
-    while (parent[size_t(a)] != a) a = parent[size_t(a)] = parent[size_t(parent[size_t(a)])];
-    return a;
-  }
-  void join(int32_t a, int32_t b) {
-    a = find(a);
-    b = find(b);
-    if (a != b) parent[size_t(std::max(a, b))] = std::min(a, b);  // smaller id wins: deterministic
-  }
-};
-
 // Step 5: splits touching features. Distance transform of the padded mask; per component,
 // the cores where the distance exceeds half its maximum are the markers (a thin bridge has a
 // small distance, so the two sides get separate cores); the watershed floods the rest of the
 // mask from them over the channel values. Labels of the padding are joined to those of the
 // texels they repeat, so a feature cut by the texture edge stays one.
 std::vector<int32_t> split_touching(const std::vector<uint8_t>& mask, const std::vector<uint8_t>& values, int r,
-                                    uint32_t& count, std::vector<uint8_t>& marks) {
-  const int pad = std::min(r, std::max(16, r / 4));
+                                    uint32_t typical, uint32_t& count, std::vector<uint8_t>& marks) {
+  // Padding: R/4 texels (at least 16, at most R), but no more than 4 typical feature sides:
+  // far wider than the features that cross the edges, and on a large texture of small
+  // features a fraction of the work.
+  const int feature_side = int(std::ceil(std::sqrt(double(typical))));
+  const int pad = std::min(r, std::max(16, std::min(r / 4, 4 * feature_side)));
   const int side = r + 2 * pad;
   cv::Mat plane(r, r, CV_8UC1), value_plane(r, r, CV_8UC1, const_cast<uint8_t*>(values.data()));
   for (size_t i = 0; i < mask.size(); ++i) plane.data[i] = mask[i] ? 255 : 0;
@@ -389,7 +409,7 @@ FeatureLabels label_mask(std::vector<uint8_t>& mask, const std::vector<uint8_t>&
     labels = label_components(erode(mask, r, options.erode_texels), r, count);
     grow_into_mask(labels, mask, r, options.erode_texels);
   } else if (options.split_touching && count > 0) {
-    labels = split_touching(mask, values, r, count, rep.marks);
+    labels = split_touching(mask, values, r, typical, count, rep.marks);
   } else {
     labels = std::move(components);
   }
