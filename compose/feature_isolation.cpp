@@ -640,18 +640,22 @@ Candidate isolate_once(const std::vector<uint8_t>& raw, int r, double sigma, dou
 }  // namespace
 
 std::string IsolationReport::summary() const {
+  char joints[96] = "";
+  if (joint_texels > 0 || reclaimed_texels > 0)
+    std::snprintf(joints, sizeof joints, "%u joint texels cut, %u shaded texels reclaimed; ", joint_texels,
+                  reclaimed_texels);
   char text[768];
   std::snprintf(text, sizeof text,
                 "%s features on %s (smoothed, sigma %.1f%s), cut %.1f/255; largest-component share of the light "
-                "side %.2f, dark side %.2f (%s); %u joint texels cut, %u shaded texels reclaimed; %u components, "
-                "%u pin-holes filled, +%u split by the watershed, %u specks dropped (< %u texels)",
+                "side %.2f, dark side %.2f (%s); %s%u components, %u pin-holes filled, +%u split by the watershed, "
+                "%u specks dropped (< %u texels)",
                 features_light ? "light" : "dark", used_height ? "height" : "luminance", smooth_sigma,
                 background_sigma > 0.0 ? (", relative to a sigma " + std::to_string(int(std::lround(background_sigma))) +
                                           " background").c_str()
                                        : "",
                 cut, light_network_share, dark_network_share,
-                polarity_forced ? "polarity given" : "the other side is the network", joint_texels, reclaimed_texels,
-                components, holes_filled, split_added, specks_dropped, speck_limit);
+                polarity_forced ? "polarity given" : "the other side is the network", joints, components,
+                holes_filled, split_added, specks_dropped, speck_limit);
   return text;
 }
 
