@@ -295,7 +295,7 @@ uint32_t fill_pin_holes(std::vector<uint8_t>& mask, int r, uint32_t limit, int m
   return filled;
 }
 
-// Step 5: splits touching features. Distance transform of the padded mask; per component,
+// Step 6: splits touching features. Distance transform of the padded mask; per component,
 // the cores where the distance exceeds half its maximum are the markers (a thin bridge has a
 // small distance, so the two sides get separate cores); the watershed floods the rest of the
 // mask from them over the channel values. Labels of the padding are joined to those of the
