@@ -10,22 +10,32 @@
 //  3. polarity: features are the compact, separated side, the background the connected
 //     network (mortar, grout, soil between stones), whichever side is lighter. The side whose
 //     largest 4-connected component holds the larger share of that side's texels is the
-//     network;
-//  4. pin-holes: background components other than the network and smaller than 1/16 of the
-//     typical feature are filled;
-//  5. split: features touching through thin gaps or one-texel bridges are separated by a
+//     network; the shares are summed over the smoothing scale, half and twice it (grain
+//     decides at the fine scale, shading at the coarse one; neither alone);
+//  4. joints (cut_joints, experimental, off by default): thin lines of the background's
+//     polarity (dark lines between light features) found by a Hessian ridge/valley measure at
+//     1 and 2 texels with hysteresis (Otsu's level of the measure and 0.4 of it, keeping weak
+//     stretches that continue strong ones). They cut the thresholded mask where a joint is too
+//     faint for the global level, and the cells between joints that are more than 15 %
+//     feature-coloured take back their shaded texels (a stone's dark side, a tile's shadowed
+//     edge). Better counts on some photographs, worse on others, and it cuts one-texel bridges
+//     itself (docs/metatex.md, "On real photographs");
+//  5. pin-holes: background components other than the network and smaller than 1/16 of the
+//     typical feature are filled; with joints cut, only those shorter than a quarter of its
+//     side (a cut-off piece of joint is long and separates two features);
+//  6. split: features touching through thin gaps or one-texel bridges are separated by a
 //     distance transform and a marker-based watershed (OpenCV cv::distanceTransform,
 //     cv::connectedComponents, cv::watershed; markers: where the distance is at least 0.4 of
 //     the component's peak, or of the typical peak if lower), run on the texture padded
 //     periodically and joined back across its edges;
-//  6. specks: components smaller than min_feature_texels, or than speck_fraction of the
+//  7. specks: components smaller than min_feature_texels, or than speck_fraction of the
 //     typical feature, are dropped.
 // "Typical feature" is the area-weighted median component: the size of the component holding
 // the median feature texel, which specks do not drag down.
 //
 // Limits: the threshold is global. Photographs whose features span the background's
-// brightness (shaded stones, light and dark halves) are not segmented reliably; see
-// docs/metatex.md, "On real photographs". Use a hand-made mask for them.
+// brightness (shaded stones, rough faces, faint joints) are not segmented reliably; the joint
+// cut helps on some. See docs/metatex.md, "On real photographs". Use a hand-made mask for them.
 //
 // Thread-safety: pure functions.
 #pragma once
@@ -54,6 +64,7 @@ struct IsolationOptions {
   // Texels: the value is taken relative to its neighbourhood, a Gaussian of this sigma
   // (removes slow shading before the threshold); 0: off.
   double background_sigma = 0.0;
+  bool cut_joints = false;           // step 4 (experimental, off by default): cut along thin joint lines
   bool fill_holes = true;
   bool split_touching = true;        // distance transform + watershed
   uint32_t min_feature_texels = 8;   // absolute speck limit
@@ -67,8 +78,10 @@ struct IsolationReport {
   bool features_light = true;
   bool polarity_forced = false;
   double cut = 0.0;                  // threshold in 0..255 units of the (smoothed) channel
-  double light_network_share = 0.0;  // largest component / side texels, per side (step 3)
+  double light_network_share = 0.0;  // largest component / side texels, per side (step 3; mean of the scales)
   double dark_network_share = 0.0;
+  uint32_t joint_texels = 0;         // step 4: texels on joint lines
+  uint32_t reclaimed_texels = 0;     // step 4: background-coloured texels given to feature cells
   uint32_t components = 0;           // feature components before splitting
   uint32_t split_added = 0;          // features the watershed added
   uint32_t holes_filled = 0;         // pin-holes (components)

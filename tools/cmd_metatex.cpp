@@ -35,7 +35,7 @@ struct MetatexArgs {
   double threshold = -1.0;
   bool invert = false;
   bool automatic = false;
-  bool no_split = false, no_fill = false;
+  bool no_split = false, no_fill = false, joints = false;
   uint32_t min_texels = IsolationOptions{}.min_feature_texels;
   double speck_fraction = IsolationOptions{}.speck_fraction;
   double smooth = IsolationOptions{}.smooth_sigma;
@@ -184,6 +184,7 @@ int run_metatex(const MetatexArgs& a, bool threshold_given) {
     options.background_sigma = a.background;
     options.split_touching = !a.no_split;
     options.fill_holes = !a.no_fill;
+    options.cut_joints = a.joints;
     options.erode_texels = a.erode;
     labels = isolate_features(m.albedo, options, &report);
     specks = report.specks_dropped;
@@ -278,6 +279,8 @@ const CommandRegistrar k_register{
                              ->capture_default_str();
       auto* no_split = app.add_flag("--no-split", a->no_split, "Do not split touching features (watershed)");
       auto* no_fill = app.add_flag("--no-fill", a->no_fill, "Do not fill pin-holes inside features");
+      auto* joints = app.add_flag("--joints", a->joints,
+                                  "Also cut along thin joint lines (ridge/valley lines; experimental)");
       auto* erode = app.add_option("--erode", a->erode,
                                    "Erode by this many texels before labelling (the older splitter; replaces the watershed)")
                         ->check(CLI::Range(0u, 256u));
@@ -288,7 +291,7 @@ const CommandRegistrar k_register{
       app.add_option("--debug", a->debug,
                      "Debug image (.png ...): features tinted, centroids white, split lines yellow, filled holes "
                      "blue, dropped specks red");
-      for (CLI::Option* automatic_only : {channel, threshold, polarity, invert, erode, speck, smooth, background, no_split, no_fill})
+      for (CLI::Option* automatic_only : {channel, threshold, polarity, invert, erode, speck, smooth, background, no_split, no_fill, joints})
         automatic_only->excludes(mask);
       return [a, threshold] { return run_metatex(*a, threshold->count() > 0); };
     }};
