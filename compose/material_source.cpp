@@ -134,7 +134,7 @@ Result<ImageRGBA8> load_albedo(const SceneDesc& d, size_t index, GeneratedMateri
 // whenever isolate_features() or its defaults change). Best effort: a missing, unreadable or
 // mismatched file is rebuilt and rewritten (atomically, so concurrent loads are safe); a
 // folder that cannot be written costs only the time. The built-in scene never uses it.
-constexpr uint32_t k_isolation_version = 2;
+constexpr uint32_t k_isolation_version = 3;
 constexpr double k_meta_blur_texels = 2.0;
 std::atomic<uint64_t> g_isolation_runs{0};
 
