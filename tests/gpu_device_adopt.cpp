@@ -177,8 +177,9 @@ struct CountingAllocator {
 
   static void* allocate(void* user, size_t size, size_t alignment, VkSystemAllocationScope) {
     auto* self = static_cast<CountingAllocator*>(user);
-    void* p = std::aligned_alloc(std::max<size_t>(alignment, alignof(std::max_align_t)),
-                                 (size + alignment - 1) / alignment * alignment);
+    // aligned_alloc wants the size a multiple of the alignment it is given (ASan enforces it).
+    const size_t align = std::max<size_t>(alignment, alignof(std::max_align_t));
+    void* p = std::aligned_alloc(align, (size + align - 1) / align * align);
     std::lock_guard lock(self->mutex);
     self->live[p] = size;
     ++self->allocations;
