@@ -65,7 +65,7 @@ Result<std::unique_ptr<OIIO::ImageInput>> open_input(const std::string& path) {
   config.attribute("oiio:UnassociatedAlpha", 1);  // keep colour and alpha exactly as stored
   std::unique_ptr<OIIO::ImageInput> in;
   {
-    DependencyLeaksIgnored scope;
+    [[maybe_unused]] DependencyLeaksIgnored scope;
     in = OIIO::ImageInput::open(path, &config);
   }
   if (!in) return make_error(path + ": not an image in a supported format (" + one_line(OIIO::geterror()) + ")");
@@ -88,7 +88,7 @@ Result<ImageF> read_all_channels(const std::string& path, OIIO::ImageInput& in) 
   ImageF image(spec.width, spec.height, spec.nchannels);
   bool read = false;
   {
-    DependencyLeaksIgnored scope;
+    [[maybe_unused]] DependencyLeaksIgnored scope;
     read = in.read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.data.data());
   }
   if (!read)
