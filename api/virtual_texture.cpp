@@ -288,14 +288,14 @@ Status VirtualTexture::record(VkCommandBuffer cmd) {
   m.record_setup(cmd);
   // Earlier frames' reads by the client's stages end before this frame rewrites what they read.
   if (m.desc.record_barriers)
-    vkCmdPipelineBarrier(cmd, m.desc.consumer_stages, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+    m.context->fn().vkCmdPipelineBarrier(cmd, m.desc.consumer_stages, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
                          0, 0, nullptr, 0, nullptr, 0, nullptr);
   const tvt::Status s = m.vt->record(cmd);
   m.vt->end_frame();
   m.recorded = true;
   // This frame's writes become visible to the client's stages recorded next.
   if (m.desc.record_barriers)
-    tvt::vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+    m.context->memory_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
                                      VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT, m.desc.consumer_stages,
                                      VK_ACCESS_SHADER_READ_BIT);
   const tvt::VtFrameStats& vs = m.vt->stats();

@@ -4,7 +4,7 @@
 
 namespace tvt::vk {
 
-void Context::transition(VkCommandBuffer cmd, const Image& image, VkImageLayout from, VkImageLayout to) {
+void Context::transition(VkCommandBuffer cmd, const Image& image, VkImageLayout from, VkImageLayout to) const {
   TVT_CHECK(image.handle() != VK_NULL_HANDLE);
   const VkImageSubresourceRange range{aspect_of(image.format()), 0, VK_REMAINING_MIP_LEVELS, 0,
                                       VK_REMAINING_ARRAY_LAYERS};
@@ -23,7 +23,7 @@ void Context::transition(VkCommandBuffer cmd, const Image& image, VkImageLayout 
     auto dep = init<VkDependencyInfo>(VK_STRUCTURE_TYPE_DEPENDENCY_INFO);
     dep.imageMemoryBarrierCount = 1;
     dep.pImageMemoryBarriers = &b;
-    vkCmdPipelineBarrier2(cmd, &dep);
+    fn_.vkCmdPipelineBarrier2(cmd, &dep);
   } else {
     auto b = init<VkImageMemoryBarrier>(VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER);
     b.srcAccessMask = VK_ACCESS_MEMORY_WRITE_BIT;
@@ -34,17 +34,17 @@ void Context::transition(VkCommandBuffer cmd, const Image& image, VkImageLayout 
     b.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
     b.image = image.handle();
     b.subresourceRange = range;
-    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, 0, 0, nullptr, 0,
+    fn_.vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, 0, 0, nullptr, 0,
                          nullptr, 1, &b);
   }
 }
 
 void Context::memory_barrier(VkCommandBuffer cmd, VkPipelineStageFlags src_stage, VkAccessFlags src_access,
-                             VkPipelineStageFlags dst_stage, VkAccessFlags dst_access) {
+                             VkPipelineStageFlags dst_stage, VkAccessFlags dst_access) const {
   auto mb = init<VkMemoryBarrier>(VK_STRUCTURE_TYPE_MEMORY_BARRIER);
   mb.srcAccessMask = src_access;
   mb.dstAccessMask = dst_access;
-  vkCmdPipelineBarrier(cmd, src_stage, dst_stage, 0, 1, &mb, 0, nullptr, 0, nullptr);
+  fn_.vkCmdPipelineBarrier(cmd, src_stage, dst_stage, 0, 1, &mb, 0, nullptr, 0, nullptr);
 }
 
 }  // namespace tvt::vk

@@ -23,7 +23,7 @@ void Context::run_commands(const std::function<void(VkCommandBuffer)>& record) {
   ai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
   ai.commandBufferCount = 1;
   VkCommandBuffer cmd = VK_NULL_HANDLE;
-  if (!TVT_VK_OK(*this, vkAllocateCommandBuffers(device_, &ai, &cmd))) return;
+  if (!TVT_VK_OK(*this, fn_.vkAllocateCommandBuffers(device_, &ai, &cmd))) return;
   VkFence fence = VK_NULL_HANDLE;
   auto bi = init<VkCommandBufferBeginInfo>(VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO);
   bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
@@ -32,22 +32,22 @@ void Context::run_commands(const std::function<void(VkCommandBuffer)>& record) {
   si.commandBufferCount = 1;
   si.pCommandBuffers = &cmd;
   bool submitted = false;
-  if (TVT_VK_OK(*this, vkBeginCommandBuffer(cmd, &bi))) {
+  if (TVT_VK_OK(*this, fn_.vkBeginCommandBuffer(cmd, &bi))) {
     record(cmd);
-    submitted = TVT_VK_OK(*this, vkEndCommandBuffer(cmd)) &&
-                TVT_VK_OK(*this, vkCreateFence(device_, &fci, alloc_, &fence)) &&
-                TVT_VK_OK(*this, vkQueueSubmit(queue_, 1, &si, fence));
+    submitted = TVT_VK_OK(*this, fn_.vkEndCommandBuffer(cmd)) &&
+                TVT_VK_OK(*this, fn_.vkCreateFence(device_, &fci, alloc_, &fence)) &&
+                TVT_VK_OK(*this, fn_.vkQueueSubmit(queue_, 1, &si, fence));
   }
   if (submitted) {
     // VK_TIMEOUT after 60 s: a hung GPU is latched like a lost device.
-    if (!TVT_VK_OK(*this, vkWaitForFences(device_, 1, &fence, VK_TRUE, kFenceTimeoutNs))) {
+    if (!TVT_VK_OK(*this, fn_.vkWaitForFences(device_, 1, &fence, VK_TRUE, kFenceTimeoutNs))) {
       // The command buffer may still be pending: leave it to the pool rather than free it.
-      vkDestroyFence(device_, fence, alloc_);
+      fn_.vkDestroyFence(device_, fence, alloc_);
       return;
     }
   }
-  if (fence != VK_NULL_HANDLE) vkDestroyFence(device_, fence, alloc_);
-  vkFreeCommandBuffers(device_, command_pool_, 1, &cmd);
+  if (fence != VK_NULL_HANDLE) fn_.vkDestroyFence(device_, fence, alloc_);
+  fn_.vkFreeCommandBuffers(device_, command_pool_, 1, &cmd);
 }
 
 void Context::record_deferred_setup(VkCommandBuffer cmd) {
@@ -70,9 +70,9 @@ void Context::upload(const Buffer& dst, const void* data, VkDeviceSize bytes, Vk
     deferred_staging_.push_back(std::move(staging));
     std::memcpy(deferred_staging_.back().mapped(), data, size_t(bytes));
     const VkBuffer src = deferred_staging_.back().handle(), to = dst.handle();
-    deferred_.push_back([src, to, bytes, dst_offset](VkCommandBuffer cmd) {
+    deferred_.push_back([this, src, to, bytes, dst_offset](VkCommandBuffer cmd) {
       const VkBufferCopy region{0, dst_offset, bytes};
-      vkCmdCopyBuffer(cmd, src, to, 1, &region);
+      fn_.vkCmdCopyBuffer(cmd, src, to, 1, &region);
     });
     return;
   }
@@ -86,12 +86,12 @@ void Context::upload(const Buffer& dst, const void* data, VkDeviceSize bytes, Vk
     std::memcpy(staging.mapped(), src + done, size_t(n));  // host writes: visible at submit
     run_commands([&](VkCommandBuffer cmd) {
       const VkBufferCopy region{0, dst_offset + done, n};
-      vkCmdCopyBuffer(cmd, staging.handle(), dst.handle(), 1, &region);
+      fn_.vkCmdCopyBuffer(cmd, staging.handle(), dst.handle(), 1, &region);
       // Make the copy visible to whatever the caller records next (any stage, any access).
       auto mb = init<VkMemoryBarrier>(VK_STRUCTURE_TYPE_MEMORY_BARRIER);
       mb.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
       mb.dstAccessMask = VK_ACCESS_MEMORY_READ_BIT | VK_ACCESS_MEMORY_WRITE_BIT;
-      vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, 0, 1, &mb, 0,
+      fn_.vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, 0, 1, &mb, 0,
                            nullptr, 0, nullptr);
     });
   }

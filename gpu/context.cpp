@@ -4,8 +4,6 @@
 #include <algorithm>
 #include <utility>
 
-#include "gpu/device_setup.h"
-
 namespace tvt::vk {
 
 Result<std::unique_ptr<Context>> Context::adopt(const terravt::DeviceHandles& handles) {
@@ -19,38 +17,32 @@ Result<std::unique_ptr<Context>> Context::adopt(const terravt::DeviceHandles& ha
   ctx->alloc_ = handles.allocation_callbacks;
   ctx->log_ = handles.log;
   ctx->features_ = enabled_features(*handles.enabled_features);
-  vkGetPhysicalDeviceProperties(ctx->physical_, &ctx->properties_);
-  vkGetPhysicalDeviceMemoryProperties(ctx->physical_, &ctx->memory_properties_);
+  auto fn = Functions::load(handles.get_instance_proc_addr, handles.instance, handles.device);
+  if (!fn) return fn.error();
+  ctx->fn_ = fn.value();
+  ctx->fn_.vkGetPhysicalDeviceProperties(ctx->physical_, &ctx->properties_);
+  ctx->fn_.vkGetPhysicalDeviceMemoryProperties(ctx->physical_, &ctx->memory_properties_);
   auto p11 = init<VkPhysicalDeviceVulkan11Properties>(VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_1_PROPERTIES);
   auto p2 = init<VkPhysicalDeviceProperties2>(VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2);
   p2.pNext = &p11;
-  vkGetPhysicalDeviceProperties2(ctx->physical_, &p2);
+  ctx->fn_.vkGetPhysicalDeviceProperties2(ctx->physical_, &p2);
   ctx->max_allocation_bytes_ = p11.maxMemoryAllocationSize;
 
   auto pci = init<VkCommandPoolCreateInfo>(VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO);
   pci.flags = VK_COMMAND_POOL_CREATE_TRANSIENT_BIT;
   pci.queueFamilyIndex = ctx->queue_family_;
-  if (VkResult r = vkCreateCommandPool(ctx->device_, &pci, ctx->alloc_, &ctx->command_pool_); r != VK_SUCCESS) {
+  if (VkResult r = ctx->fn_.vkCreateCommandPool(ctx->device_, &pci, ctx->alloc_, &ctx->command_pool_); r != VK_SUCCESS) {
     ctx->command_pool_ = VK_NULL_HANDLE;
     return vulkan_error(r, "vkCreateCommandPool");
   }
   return ctx;
 }
 
-Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) {
-  auto owned = OwnedDevice::create(options);
-  if (!owned) return owned.error();
-  auto ctx = adopt(owned.value()->handles());
-  if (!ctx) return ctx.error();
-  ctx.value()->owned_ = std::move(owned.value());
-  return ctx;
-}
-
 Context::~Context() {
   // terravt's own device: let the GPU finish before anything is destroyed. A client's device
   // is never waited on: the client guarantees the GPU is done with terravt's objects.
-  if (owned_ && device_) vkDeviceWaitIdle(device_);
-  if (command_pool_) vkDestroyCommandPool(device_, command_pool_, alloc_);
+  if (owned_ && device_) fn_.vkDeviceWaitIdle(device_);
+  if (command_pool_) fn_.vkDestroyCommandPool(device_, command_pool_, alloc_);
   owned_.reset();
 }
 
@@ -88,7 +80,7 @@ bool Context::ok(VkResult result, const char* call) const {
   return false;
 }
 
-void Context::wait_idle() { TVT_VK_OK(*this, vkDeviceWaitIdle(device_)); }
+void Context::wait_idle() { TVT_VK_OK(*this, fn_.vkDeviceWaitIdle(device_)); }
 
 uint32_t Context::memory_type(uint32_t allowed, VkMemoryPropertyFlags need, VkMemoryPropertyFlags fallback) const {
   for (VkMemoryPropertyFlags flags : {need, fallback}) {
@@ -102,12 +94,12 @@ uint32_t Context::memory_type(uint32_t allowed, VkMemoryPropertyFlags need, VkMe
 VkSampler Context::create_sampler(const VkSamplerCreateInfo& info) {
   VkSampler sampler = VK_NULL_HANDLE;
   if (!status()) return VK_NULL_HANDLE;  // nothing more is made after a failed call
-  if (!TVT_VK_OK(*this, vkCreateSampler(device_, &info, alloc_, &sampler))) return VK_NULL_HANDLE;
+  if (!TVT_VK_OK(*this, fn_.vkCreateSampler(device_, &info, alloc_, &sampler))) return VK_NULL_HANDLE;
   return sampler;
 }
 
 void Context::destroy_sampler(VkSampler sampler) {
-  if (sampler != VK_NULL_HANDLE) vkDestroySampler(device_, sampler, alloc_);
+  if (sampler != VK_NULL_HANDLE) fn_.vkDestroySampler(device_, sampler, alloc_);
 }
 
 }  // namespace tvt::vk

@@ -31,12 +31,22 @@
 #include "gpu/pipelines.h"
 #include "gpu/resources.h"
 #include "gpu/vk_util.h"
+#include "gpu/vk_functions.h"
 #include "terravt/device.h"
 #include "vt/result.h"
 
 namespace tvt::vk {
 
-class OwnedDevice;
+// What Context::create() made for terravt's own tools and tests (gpu/device_setup.h): the
+// instance and device, destroyed after the Context's own objects. An interface so that the
+// library proper (libterravt) never links the code that creates devices, nor the Vulkan loader.
+class DeviceOwner {
+ public:
+  virtual ~DeviceOwner() = default;
+  virtual bool validation() const = 0;
+  virtual std::vector<std::string> messages() const = 0;
+  virtual void clear_messages() = 0;
+};
 
 // For Context::create(): which device to make (see gpu/device_setup.h).
 struct ContextOptions {
@@ -70,7 +80,8 @@ class Context {
  public:
   // Runs on the client's device after terravt::check_device(handles) passed.
   static Result<std::unique_ptr<Context>> adopt(const terravt::DeviceHandles& handles);
-  // Makes an instance and device for terravt's own tools and tests, and adopts them.
+  // Makes an instance and device for terravt's own tools and tests, and adopts them. Defined
+  // in gpu/device_setup.cpp (target terravt_device_setup, which links the Vulkan loader).
   static Result<std::unique_ptr<Context>> create(const ContextOptions& options = {});
   Context(const Context&) = delete;
   Context& operator=(const Context&) = delete;
@@ -80,6 +91,9 @@ class Context {
   VkPhysicalDevice physical_device() const { return physical_; }
   VkDevice device() const { return device_; }
   VkQueue queue() const { return queue_; }
+  // terravt's private function table for this device (gpu/vk_functions.h), loaded through the
+  // client's vkGetInstanceProcAddr. Valid as long as the Context.
+  const Functions& fn() const { return fn_; }
   uint32_t queue_family() const { return queue_family_; }
   const VkAllocationCallbacks* allocation_callbacks() const { return alloc_; }
   const VkPhysicalDeviceProperties& properties() const { return properties_; }
@@ -160,11 +174,11 @@ class Context {
   // Layout transition helper (full pipeline barrier on the given image, all layers): all
   // earlier commands' writes are made visible to all later commands. Records
   // vkCmdPipelineBarrier2 when the device has synchronization2 on, else vkCmdPipelineBarrier.
-  static void transition(VkCommandBuffer cmd, const Image& image, VkImageLayout from, VkImageLayout to);
+  void transition(VkCommandBuffer cmd, const Image& image, VkImageLayout from, VkImageLayout to) const;
   // Global memory barrier: `src_access` writes of `src_stage` become visible to `dst_access`
   // of `dst_stage` (copy chains, compute -> fragment, device -> host readbacks).
-  static void memory_barrier(VkCommandBuffer cmd, VkPipelineStageFlags src_stage, VkAccessFlags src_access,
-                             VkPipelineStageFlags dst_stage, VkAccessFlags dst_access);
+  void memory_barrier(VkCommandBuffer cmd, VkPipelineStageFlags src_stage, VkAccessFlags src_access,
+                             VkPipelineStageFlags dst_stage, VkAccessFlags dst_access) const;
 
  private:
   Context() = default;
@@ -172,9 +186,10 @@ class Context {
   DescriptorSet allocate_set(VkDescriptorSetLayout layout, std::span<const VkDescriptorType> types);
   VkShaderModule create_shader_module(std::span<const uint32_t> spirv);
   // Destroyed last: the instance and device of a Context made by create() (null when adopted).
-  std::unique_ptr<OwnedDevice> owned_;
+  std::unique_ptr<DeviceOwner> owned_;
   VkInstance instance_ = VK_NULL_HANDLE;
   VkPhysicalDevice physical_ = VK_NULL_HANDLE;
+  Functions fn_;
   VkDevice device_ = VK_NULL_HANDLE;
   VkQueue queue_ = VK_NULL_HANDLE;
   uint32_t queue_family_ = 0;

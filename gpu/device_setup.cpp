@@ -307,6 +307,15 @@ Result<std::unique_ptr<OwnedDevice>> OwnedDevice::create(const ContextOptions& o
   return ctx;
 }
 
+Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) {
+  auto owned = OwnedDevice::create(options);
+  if (!owned) return owned.error();
+  auto ctx = adopt(owned.value()->handles());
+  if (!ctx) return ctx.error();
+  ctx.value()->owned_ = std::move(owned.value());
+  return ctx;
+}
+
 OwnedDevice::~OwnedDevice() {
   if (device_) {
     vkDeviceWaitIdle(device_);

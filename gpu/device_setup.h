@@ -3,7 +3,9 @@
 // discrete > integrated > other (lavapipe on GPU-less machines), and a logical device with one
 // GRAPHICS+COMPUTE queue and every feature terravt::enable_device_features() switches on.
 // It is the "client" of terravt inside the project: Context::create() makes one and adopts its
-// handles exactly as an engine's device is adopted.
+// handles exactly as an engine's device is adopted. The only code that calls the Vulkan
+// loader's exported functions: it is built apart (target terravt_device_setup), never into
+// libterravt.
 //
 // Reads no environment variable: the CLI and the tests turn TERRAVT_DEVICE and
 // TERRAVT_VALIDATION into ContextOptions.
@@ -22,21 +24,21 @@
 
 namespace tvt::vk {
 
-class OwnedDevice {
+class OwnedDevice final : public DeviceOwner {
  public:
   static Result<std::unique_ptr<OwnedDevice>> create(const ContextOptions& options);
   // Waits for the device to finish, then destroys the device, messenger and instance.
-  ~OwnedDevice();
+  ~OwnedDevice() override;
   OwnedDevice(const OwnedDevice&) = delete;
   OwnedDevice& operator=(const OwnedDevice&) = delete;
 
   // The handles to adopt (enabled_features points into this object).
   terravt::DeviceHandles handles() const;
-  bool validation() const { return messenger_ != VK_NULL_HANDLE; }
+  bool validation() const override { return messenger_ != VK_NULL_HANDLE; }
   // Every validation (and other debug-utils warning/error) message since creation or since
   // the last clear_messages().
-  std::vector<std::string> messages() const;
-  void clear_messages();
+  std::vector<std::string> messages() const override;
+  void clear_messages() override;
 
   struct Messages;  // the messenger's sink (implementation detail)
 

@@ -25,9 +25,9 @@ Result<std::unique_ptr<FrameRing>> FrameRing::create(vk::Context& context, uint3
 
   // Timestamps: only when the queue family counts them (timestampValidBits > 0).
   uint32_t families = 0;
-  vkGetPhysicalDeviceQueueFamilyProperties(context.physical_device(), &families, nullptr);
+  context.fn().vkGetPhysicalDeviceQueueFamilyProperties(context.physical_device(), &families, nullptr);
   std::vector<VkQueueFamilyProperties> props(families);
-  vkGetPhysicalDeviceQueueFamilyProperties(context.physical_device(), &families, props.data());
+  context.fn().vkGetPhysicalDeviceQueueFamilyProperties(context.physical_device(), &families, props.data());
   const uint32_t valid_bits = props.at(context.queue_family()).timestampValidBits;
   if (valid_bits > 0 && context.properties().limits.timestampPeriod > 0.f) {
     r->timestamp_mask_ = valid_bits >= 64 ? ~0ull : (1ull << valid_bits) - 1;
@@ -36,7 +36,7 @@ Result<std::unique_ptr<FrameRing>> FrameRing::create(vk::Context& context, uint3
     qci.sType = VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO;
     qci.queryType = VK_QUERY_TYPE_TIMESTAMP;
     qci.queryCount = k_queries_per_slot * frames_in_flight;
-    if (!TVT_VK_OK(context, vkCreateQueryPool(device, &qci, context.allocation_callbacks(), &r->queries_)))
+    if (!TVT_VK_OK(context, context.fn().vkCreateQueryPool(device, &qci, context.allocation_callbacks(), &r->queries_)))
       r->queries_ = VK_NULL_HANDLE;
     r->timestamps_ = context.create_buffer(sizeof(uint64_t) * k_queries_per_slot * frames_in_flight,
                                            VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
@@ -59,9 +59,9 @@ FrameRing::~FrameRing() {
   context_->wait_idle();
   const VkDevice device = context_->device();
   for (Slot& s : slots_)
-    if (s.fence != VK_NULL_HANDLE) vkDestroyFence(device, s.fence, context_->allocation_callbacks());
-  if (queries_ != VK_NULL_HANDLE) vkDestroyQueryPool(device, queries_, context_->allocation_callbacks());
-  if (pool_ != VK_NULL_HANDLE) vkDestroyCommandPool(device, pool_, context_->allocation_callbacks());
+    if (s.fence != VK_NULL_HANDLE) context_->fn().vkDestroyFence(device, s.fence, context_->allocation_callbacks());
+  if (queries_ != VK_NULL_HANDLE) context_->fn().vkDestroyQueryPool(device, queries_, context_->allocation_callbacks());
+  if (pool_ != VK_NULL_HANDLE) context_->fn().vkDestroyCommandPool(device, pool_, context_->allocation_callbacks());
 }
 
 std::optional<FrameTiming> FrameRing::collect(Slot& slot, uint32_t index) {
@@ -91,18 +91,18 @@ VkCommandBuffer FrameRing::begin(uint64_t frame) {
   const auto t0 = std::chrono::steady_clock::now();
   if (!context_->status()) return VK_NULL_HANDLE;
   // VK_TIMEOUT (a frame not finished within 60 s) is latched like a lost device.
-  if (!TVT_VK_OK(*context_, vkWaitForFences(device, 1, &s.fence, VK_TRUE, k_fence_timeout_ns))) return VK_NULL_HANDLE;
+  if (!TVT_VK_OK(*context_, context_->fn().vkWaitForFences(device, 1, &s.fence, VK_TRUE, k_fence_timeout_ns))) return VK_NULL_HANDLE;
   last_wait_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   if (auto t = collect(s, index)) completed_.push_back(*t);
   VkCommandBufferBeginInfo bi{};
   bi.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO;
   bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
-  if (!TVT_VK_OK(*context_, vkResetFences(device, 1, &s.fence)) || !TVT_VK_OK(*context_, vkResetCommandBuffer(s.cmd, 0)) ||
-      !TVT_VK_OK(*context_, vkBeginCommandBuffer(s.cmd, &bi)))
+  if (!TVT_VK_OK(*context_, context_->fn().vkResetFences(device, 1, &s.fence)) || !TVT_VK_OK(*context_, context_->fn().vkResetCommandBuffer(s.cmd, 0)) ||
+      !TVT_VK_OK(*context_, context_->fn().vkBeginCommandBuffer(s.cmd, &bi)))
     return VK_NULL_HANDLE;
   if (queries_ != VK_NULL_HANDLE) {
-    vkCmdResetQueryPool(s.cmd, queries_, k_queries_per_slot * index, k_queries_per_slot);
-    vkCmdWriteTimestamp(s.cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, queries_, k_queries_per_slot * index);
+    context_->fn().vkCmdResetQueryPool(s.cmd, queries_, k_queries_per_slot * index, k_queries_per_slot);
+    context_->fn().vkCmdWriteTimestamp(s.cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, queries_, k_queries_per_slot * index);
   }
   s.frame = frame;
   s.marks = 0;
@@ -116,7 +116,7 @@ void FrameRing::mark() {
   Slot& s = slots_[*recording_];
   if (queries_ == VK_NULL_HANDLE || s.marks == k_max_marks) return;
   ++s.marks;
-  vkCmdWriteTimestamp(s.cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries_, k_queries_per_slot * *recording_ + s.marks);
+  context_->fn().vkCmdWriteTimestamp(s.cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries_, k_queries_per_slot * *recording_ + s.marks);
 }
 
 void FrameRing::submit(VkFence also_signal) {
@@ -124,10 +124,10 @@ void FrameRing::submit(VkFence also_signal) {
   Slot& s = slots_[*recording_];
   if (queries_ != VK_NULL_HANDLE) {
     const uint32_t first = k_queries_per_slot * *recording_, count = s.marks + 2;
-    vkCmdWriteTimestamp(s.cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries_, first + count - 1);
-    vkCmdCopyQueryPoolResults(s.cmd, queries_, first, count, timestamps_.handle(), sizeof(uint64_t) * first,
+    context_->fn().vkCmdWriteTimestamp(s.cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries_, first + count - 1);
+    context_->fn().vkCmdCopyQueryPoolResults(s.cmd, queries_, first, count, timestamps_.handle(), sizeof(uint64_t) * first,
                               sizeof(uint64_t), VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT);
-    vk::Context::memory_barrier(s.cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
+    context_->memory_barrier(s.cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
                                 VK_PIPELINE_STAGE_HOST_BIT, VK_ACCESS_HOST_READ_BIT);
   }
   recording_.reset();
@@ -137,20 +137,20 @@ void FrameRing::submit(VkFence also_signal) {
   si.pCommandBuffers = &s.cmd;
   // After a failure nothing more is submitted; the slot's fence stays unsignalled (the
   // destructor waits for the device, not for fences).
-  if (!context_->status() || !TVT_VK_OK(*context_, vkEndCommandBuffer(s.cmd)) ||
-      !TVT_VK_OK(*context_, vkQueueSubmit(context_->queue(), 1, &si, s.fence))) {
+  if (!context_->status() || !TVT_VK_OK(*context_, context_->fn().vkEndCommandBuffer(s.cmd)) ||
+      !TVT_VK_OK(*context_, context_->fn().vkQueueSubmit(context_->queue(), 1, &si, s.fence))) {
     s.frame.reset();
     return;
   }
   // No work: the fence signals when everything submitted before it has completed.
-  if (also_signal != VK_NULL_HANDLE) TVT_VK_OK(*context_, vkQueueSubmit(context_->queue(), 0, nullptr, also_signal));
+  if (also_signal != VK_NULL_HANDLE) TVT_VK_OK(*context_, context_->fn().vkQueueSubmit(context_->queue(), 0, nullptr, also_signal));
 }
 
 std::vector<FrameTiming> FrameRing::take_completed() {
   for (uint32_t i = 0; i < slots_.size(); ++i) {
     Slot& s = slots_[i];
     if (!s.frame || (recording_ && *recording_ == i)) continue;
-    if (vkGetFenceStatus(context_->device(), s.fence) != VK_SUCCESS) continue;
+    if (context_->fn().vkGetFenceStatus(context_->device(), s.fence) != VK_SUCCESS) continue;
     if (auto t = collect(s, i)) completed_.push_back(*t);
   }
   std::vector<FrameTiming> out;
@@ -162,7 +162,7 @@ std::vector<FrameTiming> FrameRing::take_completed() {
 void FrameRing::wait_idle() {
   TVT_CHECK(!recording_);
   for (Slot& s : slots_)
-    if (s.frame && !TVT_VK_OK(*context_, vkWaitForFences(context_->device(), 1, &s.fence, VK_TRUE, k_fence_timeout_ns)))
+    if (s.frame && !TVT_VK_OK(*context_, context_->fn().vkWaitForFences(context_->device(), 1, &s.fence, VK_TRUE, k_fence_timeout_ns)))
       return;
 }
 

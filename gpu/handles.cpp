@@ -13,6 +13,7 @@ Buffer& Buffer::operator=(Buffer&& o) noexcept {
   if (this != &o) {
     reset();
     device_ = std::exchange(o.device_, VK_NULL_HANDLE);
+    fn_ = std::exchange(o.fn_, nullptr);
     alloc_ = std::exchange(o.alloc_, nullptr);
     buffer_ = std::exchange(o.buffer_, VK_NULL_HANDLE);
     memory_ = std::exchange(o.memory_, VK_NULL_HANDLE);
@@ -26,10 +27,11 @@ Buffer::~Buffer() { reset(); }
 
 void Buffer::reset() {
   if (device_) {
-    if (buffer_) vkDestroyBuffer(device_, buffer_, alloc_);
-    if (memory_) vkFreeMemory(device_, memory_, alloc_);  // unmaps implicitly
+    if (buffer_) fn_->vkDestroyBuffer(device_, buffer_, alloc_);
+    if (memory_) fn_->vkFreeMemory(device_, memory_, alloc_);  // unmaps implicitly
   }
   device_ = VK_NULL_HANDLE;
+  fn_ = nullptr;
   alloc_ = nullptr;
   buffer_ = VK_NULL_HANDLE;
   memory_ = VK_NULL_HANDLE;
@@ -43,6 +45,7 @@ Image& Image::operator=(Image&& o) noexcept {
   if (this != &o) {
     reset();
     device_ = std::exchange(o.device_, VK_NULL_HANDLE);
+    fn_ = std::exchange(o.fn_, nullptr);
     alloc_ = std::exchange(o.alloc_, nullptr);
     image_ = std::exchange(o.image_, VK_NULL_HANDLE);
     view_ = std::exchange(o.view_, VK_NULL_HANDLE);
@@ -61,11 +64,12 @@ Image::~Image() { reset(); }
 
 void Image::reset() {
   if (device_) {
-    if (view_) vkDestroyImageView(device_, view_, alloc_);
-    if (image_) vkDestroyImage(device_, image_, alloc_);
-    if (memory_) vkFreeMemory(device_, memory_, alloc_);
+    if (view_) fn_->vkDestroyImageView(device_, view_, alloc_);
+    if (image_) fn_->vkDestroyImage(device_, image_, alloc_);
+    if (memory_) fn_->vkFreeMemory(device_, memory_, alloc_);
   }
   device_ = VK_NULL_HANDLE;
+  fn_ = nullptr;
   alloc_ = nullptr;
   image_ = VK_NULL_HANDLE;
   view_ = VK_NULL_HANDLE;
@@ -81,6 +85,7 @@ PipelineHandles& PipelineHandles::operator=(PipelineHandles&& o) noexcept {
   if (this != &o) {
     reset();
     device_ = std::exchange(o.device_, VK_NULL_HANDLE);
+    fn_ = std::exchange(o.fn_, nullptr);
     alloc_ = std::exchange(o.alloc_, nullptr);
     pipeline_ = std::exchange(o.pipeline_, VK_NULL_HANDLE);
     layout_ = std::exchange(o.layout_, VK_NULL_HANDLE);
@@ -93,11 +98,12 @@ PipelineHandles::~PipelineHandles() { reset(); }
 
 void PipelineHandles::reset() {
   if (device_) {
-    if (pipeline_) vkDestroyPipeline(device_, pipeline_, alloc_);
-    if (layout_) vkDestroyPipelineLayout(device_, layout_, alloc_);
-    if (set_layout_) vkDestroyDescriptorSetLayout(device_, set_layout_, alloc_);
+    if (pipeline_) fn_->vkDestroyPipeline(device_, pipeline_, alloc_);
+    if (layout_) fn_->vkDestroyPipelineLayout(device_, layout_, alloc_);
+    if (set_layout_) fn_->vkDestroyDescriptorSetLayout(device_, set_layout_, alloc_);
   }
   device_ = VK_NULL_HANDLE;
+  fn_ = nullptr;
   alloc_ = nullptr;
   pipeline_ = VK_NULL_HANDLE;
   layout_ = VK_NULL_HANDLE;
@@ -110,6 +116,7 @@ DescriptorSet& DescriptorSet::operator=(DescriptorSet&& o) noexcept {
   if (this != &o) {
     reset();
     device_ = std::exchange(o.device_, VK_NULL_HANDLE);
+    fn_ = std::exchange(o.fn_, nullptr);
     alloc_ = std::exchange(o.alloc_, nullptr);
     pool_ = std::exchange(o.pool_, VK_NULL_HANDLE);
     set_ = std::exchange(o.set_, VK_NULL_HANDLE);
@@ -121,8 +128,9 @@ DescriptorSet::~DescriptorSet() { reset(); }
 
 void DescriptorSet::reset() {
   // Destroying the pool frees the set (the pool has no FREE_DESCRIPTOR_SET_BIT).
-  if (device_ && pool_) vkDestroyDescriptorPool(device_, pool_, alloc_);
+  if (device_ && pool_) fn_->vkDestroyDescriptorPool(device_, pool_, alloc_);
   device_ = VK_NULL_HANDLE;
+  fn_ = nullptr;
   alloc_ = nullptr;
   pool_ = VK_NULL_HANDLE;
   set_ = VK_NULL_HANDLE;

@@ -14,6 +14,7 @@ ComputePipeline Context::create_compute_pipeline(std::span<const uint32_t> spirv
   if (!status()) return {};  // nothing more is made after a failed call
   ComputePipeline p;
   p.device_ = device_;
+  p.fn_ = &fn_;
   p.alloc_ = alloc_;
   p.bindings_.assign(bindings.begin(), bindings.end());
 
@@ -24,7 +25,7 @@ ComputePipeline Context::create_compute_pipeline(std::span<const uint32_t> spirv
   auto dci = init<VkDescriptorSetLayoutCreateInfo>(VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO);
   dci.bindingCount = uint32_t(lb.size());
   dci.pBindings = lb.data();
-  if (!TVT_VK_OK(*this, vkCreateDescriptorSetLayout(device_, &dci, alloc_, &p.set_layout_))) return {};
+  if (!TVT_VK_OK(*this, fn_.vkCreateDescriptorSetLayout(device_, &dci, alloc_, &p.set_layout_))) return {};
 
   const VkPushConstantRange range{VK_SHADER_STAGE_COMPUTE_BIT, 0, push_constant_bytes};
   auto plci = init<VkPipelineLayoutCreateInfo>(VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO);
@@ -32,7 +33,7 @@ ComputePipeline Context::create_compute_pipeline(std::span<const uint32_t> spirv
   plci.pSetLayouts = &p.set_layout_;
   plci.pushConstantRangeCount = push_constant_bytes ? 1u : 0u;
   plci.pPushConstantRanges = &range;
-  if (!TVT_VK_OK(*this, vkCreatePipelineLayout(device_, &plci, alloc_, &p.layout_))) return {};
+  if (!TVT_VK_OK(*this, fn_.vkCreatePipelineLayout(device_, &plci, alloc_, &p.layout_))) return {};
 
   const VkShaderModule module = create_shader_module(spirv);
   if (module == VK_NULL_HANDLE) return {};
@@ -43,8 +44,8 @@ ComputePipeline Context::create_compute_pipeline(std::span<const uint32_t> spirv
   cpci.stage.module = module;
   cpci.stage.pName = "main";
   cpci.layout = p.layout_;
-  const VkResult r = vkCreateComputePipelines(device_, VK_NULL_HANDLE, 1, &cpci, alloc_, &p.pipeline_);
-  vkDestroyShaderModule(device_, module, alloc_);
+  const VkResult r = fn_.vkCreateComputePipelines(device_, VK_NULL_HANDLE, 1, &cpci, alloc_, &p.pipeline_);
+  fn_.vkDestroyShaderModule(device_, module, alloc_);
   if (!TVT_VK_OK(*this, r)) return {};
   return p;
 }
@@ -65,6 +66,7 @@ DescriptorSet Context::allocate_set(VkDescriptorSetLayout layout, std::span<cons
   if (!status()) return {};  // nothing more is made after a failed call
   DescriptorSet s;
   s.device_ = device_;
+  s.fn_ = &fn_;
   s.alloc_ = alloc_;
   std::vector<VkDescriptorPoolSize> sizes;
   for (const VkDescriptorType type : types) {
@@ -80,12 +82,12 @@ DescriptorSet Context::allocate_set(VkDescriptorSetLayout layout, std::span<cons
   pci.maxSets = 1;
   pci.poolSizeCount = uint32_t(sizes.size());
   pci.pPoolSizes = sizes.data();
-  if (!TVT_VK_OK(*this, vkCreateDescriptorPool(device_, &pci, alloc_, &s.pool_))) return {};
+  if (!TVT_VK_OK(*this, fn_.vkCreateDescriptorPool(device_, &pci, alloc_, &s.pool_))) return {};
   auto ai = init<VkDescriptorSetAllocateInfo>(VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO);
   ai.descriptorPool = s.pool_;
   ai.descriptorSetCount = 1;
   ai.pSetLayouts = &layout;
-  if (!TVT_VK_OK(*this, vkAllocateDescriptorSets(device_, &ai, &s.set_))) return {};
+  if (!TVT_VK_OK(*this, fn_.vkAllocateDescriptorSets(device_, &ai, &s.set_))) return {};
   return s;
 }
 
@@ -95,7 +97,7 @@ VkShaderModule Context::create_shader_module(std::span<const uint32_t> spirv) {
   smci.codeSize = spirv.size_bytes();
   smci.pCode = spirv.data();
   VkShaderModule module = VK_NULL_HANDLE;
-  if (!TVT_VK_OK(*this, vkCreateShaderModule(device_, &smci, alloc_, &module))) return VK_NULL_HANDLE;
+  if (!TVT_VK_OK(*this, fn_.vkCreateShaderModule(device_, &smci, alloc_, &module))) return VK_NULL_HANDLE;
   return module;
 }
 
@@ -110,6 +112,7 @@ GraphicsPipeline Context::create_graphics_pipeline(const GraphicsPipelineDesc& d
   if (!status()) return {};  // nothing more is made after a failed call
   GraphicsPipeline p;
   p.device_ = device_;
+  p.fn_ = &fn_;
   p.alloc_ = alloc_;
   p.push_stages_ = desc.push_constant_bytes ? desc.push_constant_stages : 0;
 
@@ -121,7 +124,7 @@ GraphicsPipeline Context::create_graphics_pipeline(const GraphicsPipelineDesc& d
   auto dci = init<VkDescriptorSetLayoutCreateInfo>(VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO);
   dci.bindingCount = uint32_t(lb.size());
   dci.pBindings = lb.data();
-  if (!TVT_VK_OK(*this, vkCreateDescriptorSetLayout(device_, &dci, alloc_, &p.set_layout_))) return {};
+  if (!TVT_VK_OK(*this, fn_.vkCreateDescriptorSetLayout(device_, &dci, alloc_, &p.set_layout_))) return {};
 
   const VkPushConstantRange range{desc.push_constant_stages, 0, desc.push_constant_bytes};
   auto plci = init<VkPipelineLayoutCreateInfo>(VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO);
@@ -129,12 +132,12 @@ GraphicsPipeline Context::create_graphics_pipeline(const GraphicsPipelineDesc& d
   plci.pSetLayouts = &p.set_layout_;
   plci.pushConstantRangeCount = desc.push_constant_bytes ? 1u : 0u;
   plci.pPushConstantRanges = &range;
-  if (!TVT_VK_OK(*this, vkCreatePipelineLayout(device_, &plci, alloc_, &p.layout_))) return {};
+  if (!TVT_VK_OK(*this, fn_.vkCreatePipelineLayout(device_, &plci, alloc_, &p.layout_))) return {};
 
   const VkShaderModule vs = create_shader_module(desc.vertex_spirv);
   const VkShaderModule fs = vs == VK_NULL_HANDLE ? VK_NULL_HANDLE : create_shader_module(desc.fragment_spirv);
   if (fs == VK_NULL_HANDLE) {
-    if (vs != VK_NULL_HANDLE) vkDestroyShaderModule(device_, vs, alloc_);
+    if (vs != VK_NULL_HANDLE) fn_.vkDestroyShaderModule(device_, vs, alloc_);
     return {};
   }
   // Fragment specialization constants: constant_id i = desc.fragment_constants[i] (32 bits each).
@@ -208,9 +211,9 @@ GraphicsPipeline Context::create_graphics_pipeline(const GraphicsPipelineDesc& d
   gpci.pColorBlendState = &cb;
   gpci.pDynamicState = &dyn;
   gpci.layout = p.layout_;
-  const VkResult r = vkCreateGraphicsPipelines(device_, VK_NULL_HANDLE, 1, &gpci, alloc_, &p.pipeline_);
-  vkDestroyShaderModule(device_, vs, alloc_);
-  vkDestroyShaderModule(device_, fs, alloc_);
+  const VkResult r = fn_.vkCreateGraphicsPipelines(device_, VK_NULL_HANDLE, 1, &gpci, alloc_, &p.pipeline_);
+  fn_.vkDestroyShaderModule(device_, vs, alloc_);
+  fn_.vkDestroyShaderModule(device_, fs, alloc_);
   if (!TVT_VK_OK(*this, r)) return {};
   return p;
 }
@@ -230,7 +233,7 @@ void DescriptorSet::write_buffer(uint32_t binding, VkDescriptorType type, VkBuff
   w.descriptorCount = 1;
   w.descriptorType = type;
   w.pBufferInfo = &info;
-  vkUpdateDescriptorSets(device_, 1, &w, 0, nullptr);
+  fn_->vkUpdateDescriptorSets(device_, 1, &w, 0, nullptr);
 }
 
 void DescriptorSet::write_image(uint32_t binding, VkDescriptorType type, const VkDescriptorImageInfo& info) {
@@ -241,7 +244,7 @@ void DescriptorSet::write_image(uint32_t binding, VkDescriptorType type, const V
   w.descriptorCount = 1;
   w.descriptorType = type;
   w.pImageInfo = &info;
-  vkUpdateDescriptorSets(device_, 1, &w, 0, nullptr);
+  fn_->vkUpdateDescriptorSets(device_, 1, &w, 0, nullptr);
 }
 
 void DescriptorSet::write_storage_image(uint32_t binding, const Image& image) {

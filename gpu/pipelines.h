@@ -36,6 +36,7 @@ class PipelineHandles {
 
  protected:
   VkDevice device_ = VK_NULL_HANDLE;
+  const Functions* fn_ = nullptr;  // the Context's table (gpu/vk_functions.h)
   const VkAllocationCallbacks* alloc_ = nullptr;
   VkPipeline pipeline_ = VK_NULL_HANDLE;
   VkPipelineLayout layout_ = VK_NULL_HANDLE;
@@ -113,6 +114,7 @@ class DescriptorSet {
  private:
   friend class Context;
   VkDevice device_ = VK_NULL_HANDLE;
+  const Functions* fn_ = nullptr;  // the Context's table (gpu/vk_functions.h)
   const VkAllocationCallbacks* alloc_ = nullptr;
   VkDescriptorPool pool_ = VK_NULL_HANDLE;
   VkDescriptorSet set_ = VK_NULL_HANDLE;

@@ -12,16 +12,17 @@ Buffer Context::create_buffer(VkDeviceSize size, VkBufferUsageFlags usage, bool 
   if (!status()) return {};  // nothing more is made after a failed call
   Buffer b;
   b.device_ = device_;
+  b.fn_ = &fn_;
   b.alloc_ = alloc_;
   b.size_ = size;
   auto bci = init<VkBufferCreateInfo>(VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO);
   bci.size = size;
   bci.usage = usage;
   bci.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
-  if (!TVT_VK_OK(*this, vkCreateBuffer(device_, &bci, alloc_, &b.buffer_))) return {};
+  if (!TVT_VK_OK(*this, fn_.vkCreateBuffer(device_, &bci, alloc_, &b.buffer_))) return {};
 
   VkMemoryRequirements req{};
-  vkGetBufferMemoryRequirements(device_, b.buffer_, &req);
+  fn_.vkGetBufferMemoryRequirements(device_, b.buffer_, &req);
   const VkMemoryPropertyFlags need = host_visible
                                          ? VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT
                                          : VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT;
@@ -38,9 +39,9 @@ Buffer Context::create_buffer(VkDeviceSize size, VkBufferUsageFlags usage, bool 
     ok(VK_ERROR_OUT_OF_DEVICE_MEMORY, "vkAllocateMemory (no memory type with the required properties)");
     return {};
   }
-  if (!TVT_VK_OK(*this, vkAllocateMemory(device_, &mai, alloc_, &b.memory_))) return {};
-  if (!TVT_VK_OK(*this, vkBindBufferMemory(device_, b.buffer_, b.memory_, 0))) return {};
-  if (host_visible && !TVT_VK_OK(*this, vkMapMemory(device_, b.memory_, 0, VK_WHOLE_SIZE, 0, &b.mapped_))) return {};
+  if (!TVT_VK_OK(*this, fn_.vkAllocateMemory(device_, &mai, alloc_, &b.memory_))) return {};
+  if (!TVT_VK_OK(*this, fn_.vkBindBufferMemory(device_, b.buffer_, b.memory_, 0))) return {};
+  if (host_visible && !TVT_VK_OK(*this, fn_.vkMapMemory(device_, b.memory_, 0, VK_WHOLE_SIZE, 0, &b.mapped_))) return {};
   return b;
 }
 
@@ -69,7 +70,7 @@ Status Context::check_image_fits(VkFormat format, uint32_t width, uint32_t heigh
   const double mb = 1.0 / 1048576.0;
   char text[320];
   VkImageFormatProperties fp{};
-  if (vkGetPhysicalDeviceImageFormatProperties(physical_, format, VK_IMAGE_TYPE_2D, VK_IMAGE_TILING_OPTIMAL, usage, 0,
+  if (fn_.vkGetPhysicalDeviceImageFormatProperties(physical_, format, VK_IMAGE_TYPE_2D, VK_IMAGE_TILING_OPTIMAL, usage, 0,
                                                &fp) != VK_SUCCESS) {
     return make_error(what + ": the device cannot make this image (format " + std::to_string(int(format)) + ")");
   }
@@ -81,7 +82,7 @@ Status Context::check_image_fits(VkFormat format, uint32_t width, uint32_t heigh
   // The memory it needs, as the device computes it (creating an image allocates nothing).
   const VkImageCreateInfo ici = image_create_info(format, width, height, layers, usage, 1);
   VkImage probe = VK_NULL_HANDLE;
-  if (VkResult r = vkCreateImage(device_, &ici, alloc_, &probe); r != VK_SUCCESS) {
+  if (VkResult r = fn_.vkCreateImage(device_, &ici, alloc_, &probe); r != VK_SUCCESS) {
     if (r == VK_ERROR_OUT_OF_HOST_MEMORY || r == VK_ERROR_OUT_OF_DEVICE_MEMORY) {
       ok(r, "vkCreateImage");  // latched like any failed call
       Error e = vulkan_error(r, "vkCreateImage");
@@ -92,8 +93,8 @@ Status Context::check_image_fits(VkFormat format, uint32_t width, uint32_t heigh
                       " image of " + std::to_string(layers) + " layers");
   }
   VkMemoryRequirements req{};
-  vkGetImageMemoryRequirements(device_, probe, &req);
-  vkDestroyImage(device_, probe, alloc_);
+  fn_.vkGetImageMemoryRequirements(device_, probe, &req);
+  fn_.vkDestroyImage(device_, probe, alloc_);
   const VkDeviceSize bytes = req.size;
   VkDeviceSize heap = 0;
   for (uint32_t i = 0; i < memory_properties_.memoryHeapCount; ++i)
@@ -120,6 +121,7 @@ Image Context::create_image(VkFormat format, uint32_t width, uint32_t height, ui
   if (!status()) return {};  // nothing more is made after a failed call
   Image img;
   img.device_ = device_;
+  img.fn_ = &fn_;
   img.alloc_ = alloc_;
   img.format_ = format;
   img.width_ = width;
@@ -128,10 +130,10 @@ Image Context::create_image(VkFormat format, uint32_t width, uint32_t height, ui
   img.mip_levels_ = mip_levels;
   img.synchronization2_ = features_.synchronization2;
   const VkImageCreateInfo ici = image_create_info(format, width, height, layers, usage, mip_levels);
-  if (!TVT_VK_OK(*this, vkCreateImage(device_, &ici, alloc_, &img.image_))) return {};
+  if (!TVT_VK_OK(*this, fn_.vkCreateImage(device_, &ici, alloc_, &img.image_))) return {};
 
   VkMemoryRequirements req{};
-  vkGetImageMemoryRequirements(device_, img.image_, &req);
+  fn_.vkGetImageMemoryRequirements(device_, img.image_, &req);
   auto dedicated = init<VkMemoryDedicatedAllocateInfo>(VK_STRUCTURE_TYPE_MEMORY_DEDICATED_ALLOCATE_INFO);
   dedicated.image = img.image_;
   auto mai = init<VkMemoryAllocateInfo>(VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO);
@@ -143,8 +145,8 @@ Image Context::create_image(VkFormat format, uint32_t width, uint32_t height, ui
     ok(VK_ERROR_OUT_OF_DEVICE_MEMORY, "vkAllocateMemory (no memory type with the required properties)");
     return {};
   }
-  if (!TVT_VK_OK(*this, vkAllocateMemory(device_, &mai, alloc_, &img.memory_))) return {};
-  if (!TVT_VK_OK(*this, vkBindImageMemory(device_, img.image_, img.memory_, 0))) return {};
+  if (!TVT_VK_OK(*this, fn_.vkAllocateMemory(device_, &mai, alloc_, &img.memory_))) return {};
+  if (!TVT_VK_OK(*this, fn_.vkBindImageMemory(device_, img.image_, img.memory_, 0))) return {};
 
   const VkImageUsageFlags viewable = VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_STORAGE_BIT |
                                      VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT |
@@ -155,7 +157,7 @@ Image Context::create_image(VkFormat format, uint32_t width, uint32_t height, ui
     vci.viewType = VK_IMAGE_VIEW_TYPE_2D_ARRAY;
     vci.format = format;
     vci.subresourceRange = {aspect_of(format), 0, mip_levels, 0, layers};
-    if (!TVT_VK_OK(*this, vkCreateImageView(device_, &vci, alloc_, &img.view_))) return {};
+    if (!TVT_VK_OK(*this, fn_.vkCreateImageView(device_, &vci, alloc_, &img.view_))) return {};
   }
   return img;
 }

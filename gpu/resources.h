@@ -7,6 +7,8 @@
 
 #include <cstdint>
 
+#include "gpu/vk_functions.h"
+
 namespace tvt::vk {
 
 class Context;
@@ -29,6 +31,7 @@ class Buffer {
  private:
   friend class Context;
   VkDevice device_ = VK_NULL_HANDLE;
+  const Functions* fn_ = nullptr;  // the Context's table (gpu/vk_functions.h)
   const VkAllocationCallbacks* alloc_ = nullptr;
   VkBuffer buffer_ = VK_NULL_HANDLE;
   VkDeviceMemory memory_ = VK_NULL_HANDLE;
@@ -61,6 +64,7 @@ class Image {
  private:
   friend class Context;
   VkDevice device_ = VK_NULL_HANDLE;
+  const Functions* fn_ = nullptr;  // the Context's table (gpu/vk_functions.h)
   const VkAllocationCallbacks* alloc_ = nullptr;
   VkImage image_ = VK_NULL_HANDLE;
   VkImageView view_ = VK_NULL_HANDLE;

@@ -15,9 +15,7 @@ namespace tvt {
 
 namespace {
 
-constexpr uint64_t k_fence_timeout_ns = 60ull * 1000 * 1000 * 1000;  // read_blocking: 60 s, then fatal
-
-constexpr auto memory_barrier = &vk::Context::memory_barrier;
+constexpr uint64_t k_fence_timeout_ns = 60ull * 1000 * 1000 * 1000;  // read_blocking: 60 s, then a latched error
 
 uint32_t group_count(uint32_t invocations) {
   return (invocations + gpu::TVT_FEEDBACK_GROUP - 1) / gpu::TVT_FEEDBACK_GROUP;
@@ -107,8 +105,8 @@ FeedbackCompactor::~FeedbackCompactor() {
   if (context_->owns_device()) context_->wait_idle();
   const VkDevice device = context_->device();
   for (Slot& s : slots_)
-    if (s.fence != VK_NULL_HANDLE) vkDestroyFence(device, s.fence, context_->allocation_callbacks());
-  if (command_pool_ != VK_NULL_HANDLE) vkDestroyCommandPool(device, command_pool_, context_->allocation_callbacks());
+    if (s.fence != VK_NULL_HANDLE) context_->fn().vkDestroyFence(device, s.fence, context_->allocation_callbacks());
+  if (command_pool_ != VK_NULL_HANDLE) context_->fn().vkDestroyCommandPool(device, command_pool_, context_->allocation_callbacks());
 }
 
 VkFence FeedbackCompactor::record(VkCommandBuffer cmd, const vk::Buffer& feedback, uint64_t frame) {
@@ -118,12 +116,12 @@ VkFence FeedbackCompactor::record(VkCommandBuffer cmd, const vk::Buffer& feedbac
   // The slot's last submission must be complete before its sets and list are reused; if it is
   // not, skip this frame's feedback instead of stalling.
   if (!context_->status()) return VK_NULL_HANDLE;
-  if (const VkResult r = vkGetFenceStatus(context_->device(), s.fence); r != VK_SUCCESS) {
+  if (const VkResult r = context_->fn().vkGetFenceStatus(context_->device(), s.fence); r != VK_SUCCESS) {
     if (r != VK_NOT_READY) TVT_VK_OK(*context_, r);  // VK_ERROR_DEVICE_LOST: latched
     return VK_NULL_HANDLE;
   }
   next_frame_ = frame + 1;
-  if (!TVT_VK_OK(*context_, vkResetFences(context_->device(), 1, &s.fence))) return VK_NULL_HANDLE;
+  if (!TVT_VK_OK(*context_, context_->fn().vkResetFences(context_->device(), 1, &s.fence))) return VK_NULL_HANDLE;
   record_slot(s, cmd, feedback.handle(), 0, frame);
   return s.fence;
 }
@@ -143,31 +141,31 @@ void FeedbackCompactor::record_slot(Slot& s, VkCommandBuffer cmd, VkBuffer feedb
   const gpu::TvtFeedbackPush push{texel_count(), options_.table_capacity, options_.max_probes, 0u};
   // Earlier writes of the feedback (any pass, this or an earlier submission) and the previous
   // compaction's gather (which reads and resets the table) happen before this one.
-  memory_barrier(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, VK_ACCESS_MEMORY_WRITE_BIT,
+  context_->memory_barrier(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, VK_ACCESS_MEMORY_WRITE_BIT,
                  VK_PIPELINE_STAGE_TRANSFER_BIT | VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
                  VK_ACCESS_TRANSFER_WRITE_BIT | VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT);
-  vkCmdFillBuffer(cmd, s.list.handle(), 0, sizeof(gpu::TvtFeedbackListHeader), 0u);
-  memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
+  context_->fn().vkCmdFillBuffer(cmd, s.list.handle(), 0, sizeof(gpu::TvtFeedbackListHeader), 0u);
+  context_->memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
                  VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT);
 
   VkDescriptorSet set = s.insert_set.handle();
-  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, insert_pipeline_.handle());
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, insert_pipeline_.layout(), 0, 1, &set, 0, nullptr);
-  vkCmdPushConstants(cmd, insert_pipeline_.layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
+  context_->fn().vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, insert_pipeline_.handle());
+  context_->fn().vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, insert_pipeline_.layout(), 0, 1, &set, 0, nullptr);
+  context_->fn().vkCmdPushConstants(cmd, insert_pipeline_.layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
   const uint32_t invocations = (texel_count() + gpu::TVT_FEEDBACK_TEXELS_PER_INVOCATION - 1) /
                                gpu::TVT_FEEDBACK_TEXELS_PER_INVOCATION;
-  vkCmdDispatch(cmd, group_count(invocations), 1, 1);
+  context_->fn().vkCmdDispatch(cmd, group_count(invocations), 1, 1);
 
-  memory_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT,
+  context_->memory_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT,
                  VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT);
 
   set = s.gather_set.handle();
-  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, gather_pipeline_.handle());
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, gather_pipeline_.layout(), 0, 1, &set, 0, nullptr);
-  vkCmdPushConstants(cmd, gather_pipeline_.layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
-  vkCmdDispatch(cmd, group_count(options_.table_capacity), 1, 1);
+  context_->fn().vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, gather_pipeline_.handle());
+  context_->fn().vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, gather_pipeline_.layout(), 0, 1, &set, 0, nullptr);
+  context_->fn().vkCmdPushConstants(cmd, gather_pipeline_.layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
+  context_->fn().vkCmdDispatch(cmd, group_count(options_.table_capacity), 1, 1);
 
-  memory_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT, VK_PIPELINE_STAGE_HOST_BIT,
+  context_->memory_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT, VK_PIPELINE_STAGE_HOST_BIT,
                  VK_ACCESS_HOST_READ_BIT);
 }
 
@@ -175,14 +173,14 @@ bool FeedbackCompactor::submit(const vk::Buffer& feedback, uint64_t frame) {
   Slot& s = slots_[frame % slots_.size()];
   // Checked here too: the command buffer is re-recorded only when its last submission is done.
   if (!context_->status()) return false;
-  if (const VkResult r = vkGetFenceStatus(context_->device(), s.fence); r != VK_SUCCESS) {
+  if (const VkResult r = context_->fn().vkGetFenceStatus(context_->device(), s.fence); r != VK_SUCCESS) {
     if (r != VK_NOT_READY) TVT_VK_OK(*context_, r);  // VK_ERROR_DEVICE_LOST: latched
     return false;
   }
   VkCommandBufferBeginInfo bi{};
   bi.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO;
   bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
-  if (!TVT_VK_OK(*context_, vkResetCommandBuffer(s.own_cmd, 0)) || !TVT_VK_OK(*context_, vkBeginCommandBuffer(s.own_cmd, &bi)))
+  if (!TVT_VK_OK(*context_, context_->fn().vkResetCommandBuffer(s.own_cmd, 0)) || !TVT_VK_OK(*context_, context_->fn().vkBeginCommandBuffer(s.own_cmd, &bi)))
     return false;
   const VkFence fence = record(s.own_cmd, feedback, frame);
   if (fence == VK_NULL_HANDLE) return false;  // a failed call (latched); the slot was checked free above
@@ -190,7 +188,7 @@ bool FeedbackCompactor::submit(const vk::Buffer& feedback, uint64_t frame) {
   si.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
   si.commandBufferCount = 1;
   si.pCommandBuffers = &s.own_cmd;
-  return TVT_VK_OK(*context_, vkEndCommandBuffer(s.own_cmd)) && TVT_VK_OK(*context_, vkQueueSubmit(context_->queue(), 1, &si, fence));
+  return TVT_VK_OK(*context_, context_->fn().vkEndCommandBuffer(s.own_cmd)) && TVT_VK_OK(*context_, context_->fn().vkQueueSubmit(context_->queue(), 1, &si, fence));
 }
 
 FeedbackResult FeedbackCompactor::parse(const Slot& slot) const {
@@ -214,7 +212,7 @@ FeedbackResult FeedbackCompactor::parse(const Slot& slot) const {
 std::optional<FeedbackResult> FeedbackCompactor::try_read(uint64_t frame, bool known_complete) {
   const Slot& s = slots_[frame % slots_.size()];
   if (!s.has_frame || s.frame != frame) return std::nullopt;
-  if (!known_complete && vkGetFenceStatus(context_->device(), s.fence) != VK_SUCCESS) return std::nullopt;
+  if (!known_complete && context_->fn().vkGetFenceStatus(context_->device(), s.fence) != VK_SUCCESS) return std::nullopt;
   return parse(s);
 }
 
@@ -222,7 +220,7 @@ std::optional<FeedbackResult> FeedbackCompactor::read_blocking(uint64_t frame) {
   const Slot& s = slots_[frame % slots_.size()];
   if (!s.has_frame || s.frame != frame) return std::nullopt;
   // VK_TIMEOUT (not finished within 60 s) is latched like a lost device: no result.
-  if (!TVT_VK_OK(*context_, vkWaitForFences(context_->device(), 1, &s.fence, VK_TRUE, k_fence_timeout_ns)))
+  if (!TVT_VK_OK(*context_, context_->fn().vkWaitForFences(context_->device(), 1, &s.fence, VK_TRUE, k_fence_timeout_ns)))
     return std::nullopt;
   return parse(s);
 }
@@ -235,7 +233,7 @@ double FeedbackCompactor::time_compaction(const vk::Buffer& feedback, int repeat
     // The slot of `frame` was waited for by the previous iteration (or never used).
     if (!submit(feedback, frame)) return 0;  // a failed call, latched on the context
     const VkFence fence = slots_[frame % slots_.size()].fence;
-    if (!TVT_VK_OK(*context_, vkWaitForFences(context_->device(), 1, &fence, VK_TRUE, k_fence_timeout_ns))) return 0;
+    if (!TVT_VK_OK(*context_, context_->fn().vkWaitForFences(context_->device(), 1, &fence, VK_TRUE, k_fence_timeout_ns))) return 0;
     t = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   }
   std::nth_element(seconds.begin(), seconds.begin() + seconds.size() / 2, seconds.end());

@@ -33,7 +33,7 @@ Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, c
   c->records_in_flight_ = std::max(options.records_in_flight, 1u);
   c->materials_ = std::make_unique<MaterialUploader>(context, scene, c->records_in_flight_);
   if (options.poison_materials)
-    context.run_commands([&](VkCommandBuffer cmd) { c->materials_->fill(cmd, 0xffffffffu); });
+    context.run_commands([m = c->materials_.get()](VkCommandBuffer cmd) { m->fill(cmd, 0xffffffffu); });  // by value: may be deferred
   if (!options.lazy_materials)
     if (auto s = c->materials_->upload_all(); !s) return s.error();
   c->job_buffer_ = context.create_buffer(sizeof(gpu::TvtPageJob) * slots * c->records_in_flight_,
@@ -56,8 +56,9 @@ Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, c
       return fits.error();
     c->own_output_ = context.create_image(VK_FORMAT_R8G8B8A8_UNORM, c->slot_texels_, c->slot_texels_, slots, usage);
     c->target_ = &c->own_output_;
-    context.run_commands([&](VkCommandBuffer cmd) {
-      vk::Context::transition(cmd, c->own_output_, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL);
+    // By value: with deferred set-up (gpu/context.h) this runs after create() returned.
+    context.run_commands([ctx = &context, image = &c->own_output_](VkCommandBuffer cmd) {
+      ctx->transition(cmd, *image, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL);
     });
   }
 
@@ -101,13 +102,13 @@ Status GpuComposer::record(VkCommandBuffer cmd, std::span<const PageJob> jobs) {
   // Also with no jobs: the per-record counters restart.
   if (auto s = materials_->record(cmd, needed); !s) return s;
   if (jobs.empty()) return Ok{};
-  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.handle());
+  context_->fn().vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.handle());
   const VkDescriptorSet set = descriptors_.handle();
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.layout(), 0, 1, &set, 0, nullptr);
+  context_->fn().vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.layout(), 0, 1, &set, 0, nullptr);
   const gpu::TvtComposePush push{job_offset, uint32_t(jobs.size())};
-  vkCmdPushConstants(cmd, pipeline_.layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
+  context_->fn().vkCmdPushConstants(cmd, pipeline_.layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
   const uint32_t groups = (slot_texels_ + gpu::TVT_COMPOSE_GROUP - 1) / gpu::TVT_COMPOSE_GROUP;
-  vkCmdDispatch(cmd, groups, groups, uint32_t(jobs.size()));
+  context_->fn().vkCmdDispatch(cmd, groups, groups, uint32_t(jobs.size()));
   return Ok{};
 }
 
@@ -126,13 +127,13 @@ Result<std::vector<std::vector<uint8_t>>> GpuComposer::compose_pages(std::span<c
     context_->run_commands([&](VkCommandBuffer cmd) {
       recorded = record(cmd, jobs);
       if (!recorded) return;
-      vk::Context::transition(cmd, *target_, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
+      context_->transition(cmd, *target_, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
       VkBufferImageCopy region{};
       region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, uint32_t(count)};
       region.imageExtent = {slot_texels_, slot_texels_, 1};
-      vkCmdCopyImageToBuffer(cmd, target_->handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, readback_buffer_.handle(), 1,
+      context_->fn().vkCmdCopyImageToBuffer(cmd, target_->handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, readback_buffer_.handle(), 1,
                              &region);
-      vk::Context::transition(cmd, *target_, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL);
+      context_->transition(cmd, *target_, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL);
     });
     if (!recorded) return recorded.error();
     if (auto st = context_->status(); !st) return st.error();  // nothing ran

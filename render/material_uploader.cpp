@@ -81,8 +81,8 @@ MaterialNeeds MaterialUploader::everything() const {
 
 void MaterialUploader::fill(VkCommandBuffer cmd, uint32_t word) {
   for (const vk::Buffer* b : {&texel_buffer_, &meta_buffer_, &weight_buffer_})
-    vkCmdFillBuffer(cmd, b->handle(), 0, VK_WHOLE_SIZE, word);
-  vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
+    context_->fn().vkCmdFillBuffer(cmd, b->handle(), 0, VK_WHOLE_SIZE, word);
+  context_->memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
                               VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
                               VK_ACCESS_MEMORY_READ_BIT | VK_ACCESS_MEMORY_WRITE_BIT);
 }
@@ -189,9 +189,9 @@ Status MaterialUploader::record_copies(VkCommandBuffer cmd, const MaterialNeeds&
   const vk::Buffer* targets[3] = {&texel_buffer_, &meta_buffer_, &weight_buffer_};
   for (size_t t = 0; t < 3; ++t)
     if (!regions[t].empty())
-      vkCmdCopyBuffer(cmd, staging.handle(), targets[t]->handle(), uint32_t(regions[t].size()), regions[t].data());
+      context_->fn().vkCmdCopyBuffer(cmd, staging.handle(), targets[t]->handle(), uint32_t(regions[t].size()), regions[t].data());
   // Visible to whatever reads next: the compose dispatch, or a per-pixel pass.
-  vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
+  context_->memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
                               VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, VK_ACCESS_MEMORY_READ_BIT);
   keep.push_back(std::move(staging));
   stats_.bytes_uploaded += bytes;

@@ -10,7 +10,7 @@ namespace tvt {
 
 namespace {
 
-void level_barrier(VkCommandBuffer cmd, const vk::Image& image, uint32_t level, VkImageLayout from, VkImageLayout to,
+void level_barrier(const vk::Context& context, VkCommandBuffer cmd, const vk::Image& image, uint32_t level, VkImageLayout from, VkImageLayout to,
                    VkAccessFlags src_access, VkAccessFlags dst_access, VkPipelineStageFlags dst_stage) {
   VkImageMemoryBarrier b{};
   b.sType = VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER;
@@ -21,7 +21,7 @@ void level_barrier(VkCommandBuffer cmd, const vk::Image& image, uint32_t level, 
   b.srcQueueFamilyIndex = b.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
   b.image = image.handle();
   b.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, level, 1, 0, 1};
-  vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, dst_stage, 0, 0, nullptr, 0, nullptr, 1, &b);
+  context.fn().vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, dst_stage, 0, 0, nullptr, 0, nullptr, 1, &b);
 }
 
 }  // namespace
@@ -48,7 +48,7 @@ Result<std::unique_ptr<PlainTexture>> PlainTexture::create(vk::Context& context,
                       std::to_string(log2_vt) + ") and fit maxImageDimension2D (" + std::to_string(max_dim) + ")");
   if (options.batch_pages < 1) return make_error("plain texture: batch_pages must be at least 1");
   VkFormatProperties fp{};
-  vkGetPhysicalDeviceFormatProperties(context.physical_device(), VK_FORMAT_R8G8B8A8_UNORM, &fp);
+  context.fn().vkGetPhysicalDeviceFormatProperties(context.physical_device(), VK_FORMAT_R8G8B8A8_UNORM, &fp);
   const VkFormatFeatureFlags need = VK_FORMAT_FEATURE_BLIT_SRC_BIT | VK_FORMAT_FEATURE_BLIT_DST_BIT |
                                     VK_FORMAT_FEATURE_SAMPLED_IMAGE_FILTER_LINEAR_BIT;
   if ((fp.optimalTilingFeatures & need) != need)
@@ -72,7 +72,7 @@ Result<std::unique_ptr<PlainTexture>> PlainTexture::create(vk::Context& context,
   const uint32_t pages_per_side = size / page;
   std::vector<PageJob> jobs;
   context.run_commands([&](VkCommandBuffer cmd) {
-    vk::Context::transition(cmd, t->image_, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL);
+    context.transition(cmd, t->image_, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL);
   });
   const uint32_t total = pages_per_side * pages_per_side;
   for (uint32_t first = 0; first < total; first += options.batch_pages) {
@@ -83,9 +83,9 @@ Result<std::unique_ptr<PlainTexture>> PlainTexture::create(vk::Context& context,
     context.run_commands([&](VkCommandBuffer cmd) {
       recorded = c.record(cmd, jobs);
       if (!recorded) return;
-      vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT,
+      context.memory_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT,
                                   VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_READ_BIT);
-      vk::Context::transition(cmd, c.output(), VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
+      context.transition(cmd, c.output(), VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
       std::vector<VkImageCopy> regions(jobs.size());
       for (size_t i = 0; i < jobs.size(); ++i) {
         VkImageCopy& r = regions[i];
@@ -95,9 +95,9 @@ Result<std::unique_ptr<PlainTexture>> PlainTexture::create(vk::Context& context,
         r.dstOffset = {int32_t(jobs[i].page.x * page), int32_t(jobs[i].page.y * page), 0};
         r.extent = {page, page, 1};
       }
-      vkCmdCopyImage(cmd, c.output().handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, t->image_.handle(),
+      context.fn().vkCmdCopyImage(cmd, c.output().handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, t->image_.handle(),
                      VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, uint32_t(regions.size()), regions.data());
-      vk::Context::transition(cmd, c.output(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL);
+      context.transition(cmd, c.output(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL);
     });
     if (!recorded) return recorded.error();
     t->pages_ += uint32_t(jobs.size());
@@ -106,7 +106,7 @@ Result<std::unique_ptr<PlainTexture>> PlainTexture::create(vk::Context& context,
   // Levels 1 ... log2_size: 2:1 linear blits (exactly the 2x2 box filter).
   context.run_commands([&](VkCommandBuffer cmd) {
     for (uint32_t l = 1; l < levels; ++l) {
-      level_barrier(cmd, t->image_, l - 1, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+      level_barrier(context, cmd, t->image_, l - 1, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
                     VK_ACCESS_TRANSFER_WRITE_BIT, VK_ACCESS_TRANSFER_READ_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT);
       const int32_t src = int32_t(size >> (l - 1)), dst = int32_t(size >> l);
       VkImageBlit blit{};
@@ -114,13 +114,13 @@ Result<std::unique_ptr<PlainTexture>> PlainTexture::create(vk::Context& context,
       blit.srcOffsets[1] = {src, src, 1};
       blit.dstSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, l, 0, 1};
       blit.dstOffsets[1] = {dst, dst, 1};
-      vkCmdBlitImage(cmd, t->image_.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, t->image_.handle(),
+      context.fn().vkCmdBlitImage(cmd, t->image_.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, t->image_.handle(),
                      VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &blit, VK_FILTER_LINEAR);
     }
-    level_barrier(cmd, t->image_, levels - 1, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+    level_barrier(context, cmd, t->image_, levels - 1, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
                   VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_ACCESS_TRANSFER_WRITE_BIT, VK_ACCESS_TRANSFER_READ_BIT,
                   VK_PIPELINE_STAGE_TRANSFER_BIT);
-    vk::Context::transition(cmd, t->image_, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL);
+    context.transition(cmd, t->image_, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL);
   });
 
   VkSamplerCreateInfo si{};

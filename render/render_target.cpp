@@ -40,7 +40,7 @@ void RenderTarget::begin(VkCommandBuffer cmd, const std::vector<VkClearColorValu
   TVT_CHECK(context_ != nullptr);
   std::vector<VkRenderingAttachmentInfo> color_infos;
   for (size_t i = 0; i < colors_.size(); ++i) {
-    Context::transition(cmd, colors_[i], VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL);
+    context_->transition(cmd, colors_[i], VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL);
     VkRenderingAttachmentInfo a{};
     a.sType = VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO;
     a.imageView = colors_[i].view();
@@ -52,7 +52,7 @@ void RenderTarget::begin(VkCommandBuffer cmd, const std::vector<VkClearColorValu
   }
   VkRenderingAttachmentInfo depth_info{};
   if (desc_.depth) {
-    Context::transition(cmd, depth_, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL);
+    context_->transition(cmd, depth_, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL);
     depth_info.sType = VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO;
     depth_info.imageView = depth_.view();
     depth_info.imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
@@ -67,18 +67,18 @@ void RenderTarget::begin(VkCommandBuffer cmd, const std::vector<VkClearColorValu
   ri.colorAttachmentCount = uint32_t(color_infos.size());
   ri.pColorAttachments = color_infos.data();
   ri.pDepthAttachment = desc_.depth ? &depth_info : nullptr;
-  vkCmdBeginRendering(cmd, &ri);
+  context_->fn().vkCmdBeginRendering(cmd, &ri);
 
   const VkViewport viewport{0.0f, 0.0f, float(desc_.width), float(desc_.height), 0.0f, 1.0f};
   const VkRect2D scissor{{0, 0}, {desc_.width, desc_.height}};
-  vkCmdSetViewport(cmd, 0, 1, &viewport);
-  vkCmdSetScissor(cmd, 0, 1, &scissor);
+  context_->fn().vkCmdSetViewport(cmd, 0, 1, &viewport);
+  context_->fn().vkCmdSetScissor(cmd, 0, 1, &scissor);
 }
 
 void RenderTarget::end(VkCommandBuffer cmd) const {
-  vkCmdEndRendering(cmd);
+  context_->fn().vkCmdEndRendering(cmd);
   for (const Image& c : colors_) {
-    Context::transition(cmd, c, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
+    context_->transition(cmd, c, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
   }
 }
 
@@ -95,8 +95,8 @@ std::vector<uint8_t> RenderTarget::read_color(uint32_t index) const {
     VkBufferImageCopy region{};
     region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
     region.imageExtent = {desc_.width, desc_.height, 1};
-    vkCmdCopyImageToBuffer(cmd, img.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, staging.handle(), 1, &region);
-    vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
+    context_->fn().vkCmdCopyImageToBuffer(cmd, img.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, staging.handle(), 1, &region);
+    context_->memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
                                 VK_PIPELINE_STAGE_HOST_BIT, VK_ACCESS_HOST_READ_BIT);
   });
   if (context_->status()) std::memcpy(out.data(), staging.mapped(), out.size());

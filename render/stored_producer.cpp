@@ -114,10 +114,10 @@ void StoredProducer::record(VkCommandBuffer cmd, const vk::Image& cache) {
     // The cache lives in GENERAL (the composer writes it as a storage image); the copy gets the
     // transfer layout, and the barriers order it after this frame's compute writes and before
     // every later read.
-    vk::Context::transition(cmd, cache, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL);
-    vkCmdCopyBufferToImage(cmd, staging_.handle(), cache.handle(), VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+    context_->transition(cmd, cache, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL);
+    context_->fn().vkCmdCopyBufferToImage(cmd, staging_.handle(), cache.handle(), VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
                            uint32_t(regions.size()), regions.data());
-    vk::Context::transition(cmd, cache, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL);
+    context_->transition(cmd, cache, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL);
     stats_.landed += uint32_t(to_copy_.size());
     to_copy_.clear();
   }

@@ -309,11 +309,11 @@ void TerrainRenderer::record(VkCommandBuffer cmd, const Camera& camera) {
   // Earlier frames' shader reads of the frame buffer finish before it is overwritten (WAR:
   // an execution dependency is enough).
   // (The compute stage: the feedback compactor of an earlier frame reads the feedback buffer.)
-  vkCmdPipelineBarrier(cmd,
+  context_->fn().vkCmdPipelineBarrier(cmd,
                        VK_PIPELINE_STAGE_VERTEX_SHADER_BIT | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT |
                            VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
                        VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 0, nullptr, 0, nullptr, 0, nullptr);
-  vkCmdUpdateBuffer(cmd, frame_buffer_.handle(), 0, sizeof(frame), &frame);
+  context_->fn().vkCmdUpdateBuffer(cmd, frame_buffer_.handle(), 0, sizeof(frame), &frame);
   if (feedback != FeedbackMode::None) {
     // This frame's rotating pixel of every N x N block; main-pass feedback starts from all
     // texels empty (the separate pass clears its own target, the pick writes every texel).
@@ -321,11 +321,11 @@ void TerrainRenderer::record(VkCommandBuffer cmd, const Camera& camera) {
     feedback_.offset_x = (i * 7u) % n;  // a scrambled walk over the block
     feedback_.offset_y = (i / n + i * 3u) % n;
     if (feedback != FeedbackMode::Attachment)
-      vkCmdUpdateBuffer(cmd, feedback_params_buffer_.handle(), 0, sizeof(feedback_), &feedback_);
-    if (feedback == FeedbackMode::MainPass) vkCmdFillBuffer(cmd, feedback_buffer_.handle(), 0, VK_WHOLE_SIZE, 0xffffffffu);
+      context_->fn().vkCmdUpdateBuffer(cmd, feedback_params_buffer_.handle(), 0, sizeof(feedback_), &feedback_);
+    if (feedback == FeedbackMode::MainPass) context_->fn().vkCmdFillBuffer(cmd, feedback_buffer_.handle(), 0, VK_WHOLE_SIZE, 0xffffffffu);
   }
   ++frames_recorded_;
-  vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
+  context_->memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
                               VK_PIPELINE_STAGE_VERTEX_SHADER_BIT | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT,
                               VK_ACCESS_UNIFORM_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT);
 
@@ -356,7 +356,7 @@ void TerrainRenderer::record(VkCommandBuffer cmd, const Camera& camera) {
   if (feedback != FeedbackMode::None) {
     // Feedback texels (fragment stores, the pick pass or the separate pass's copy) are read by
     // the compactor's compute passes.
-    vk::Context::memory_barrier(cmd,
+    context_->memory_barrier(cmd,
                                 VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT |
                                     VK_PIPELINE_STAGE_TRANSFER_BIT,
                                 VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT,
@@ -367,13 +367,13 @@ void TerrainRenderer::record(VkCommandBuffer cmd, const Camera& camera) {
 
 void TerrainRenderer::draw_chunks(VkCommandBuffer cmd, const vk::GraphicsPipeline& pipeline, const vk::DescriptorSet& set,
                                   const std::vector<ChunkDraw>& draws, const gpu::TvtTerrainFrame& frame) {
-  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline.handle());
+  context_->fn().vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline.handle());
   const VkDescriptorSet s = set.handle();
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline.layout(), 0, 1, &s, 0, nullptr);
+  context_->fn().vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline.layout(), 0, 1, &s, 0, nullptr);
   const VkDeviceSize offset = 0;
   const VkBuffer vb = vertex_buffer_.handle();
-  vkCmdBindVertexBuffers(cmd, 0, 1, &vb, &offset);
-  vkCmdBindIndexBuffer(cmd, index_buffer_.handle(), 0, VK_INDEX_TYPE_UINT32);
+  context_->fn().vkCmdBindVertexBuffers(cmd, 0, 1, &vb, &offset);
+  context_->fn().vkCmdBindIndexBuffer(cmd, index_buffer_.handle(), 0, VK_INDEX_TYPE_UINT32);
   uint64_t triangles = 0;
   for (const ChunkDraw& d : draws) {
     gpu::TvtTerrainDraw push{};
@@ -382,9 +382,9 @@ void TerrainRenderer::draw_chunks(VkCommandBuffer cmd, const vk::GraphicsPipelin
     push.rel_texel = glm::ivec2(int32_t(rx), int32_t(ry));
     push.quad_texels = mesh_.quad_texels();
     push.skirt_depth_m = float(d.skirt_depth_m);
-    vkCmdPushConstants(cmd, pipeline.layout(), VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(push), &push);
+    context_->fn().vkCmdPushConstants(cmd, pipeline.layout(), VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(push), &push);
     const LodRange& lod = mesh_.lod(d.lod);
-    vkCmdDrawIndexed(cmd, lod.index_count, 1, lod.first_index, 0, 0);
+    context_->fn().vkCmdDrawIndexed(cmd, lod.index_count, 1, lod.first_index, 0, 0);
     triangles += lod.index_count / 3;
   }
   if (&pipeline == &pipeline_) stats_.triangles = triangles;
@@ -407,13 +407,13 @@ void TerrainRenderer::record_feedback_pass(VkCommandBuffer cmd, const std::vecto
   vp.height = float(options_.height) / n;
   vp.minDepth = 0.0f;
   vp.maxDepth = 1.0f;
-  vkCmdSetViewport(cmd, 0, 1, &vp);
+  context_->fn().vkCmdSetViewport(cmd, 0, 1, &vp);
   draw_chunks(cmd, feedback_pipeline_, feedback_descriptors_, draws, frame);
   feedback_target_.end(cmd);
   VkBufferImageCopy region{};
   region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
   region.imageExtent = {feedback_.width, feedback_.height, 1};
-  vkCmdCopyImageToBuffer(cmd, feedback_target_.color(0).handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+  context_->fn().vkCmdCopyImageToBuffer(cmd, feedback_target_.color(0).handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
                          feedback_buffer_.handle(), 1, &region);
 }
 
@@ -422,14 +422,14 @@ void TerrainRenderer::record_feedback_pass(VkCommandBuffer cmd, const std::vecto
 // GENERAL for the compute pass and back, so end()'s layout contract (TRANSFER_SRC) holds.
 void TerrainRenderer::record_feedback_pick(VkCommandBuffer cmd) {
   const vk::Image& image = target_.color(1);
-  vk::Context::transition(cmd, image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL);
-  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pick_pipeline_.handle());
+  context_->transition(cmd, image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL);
+  context_->fn().vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pick_pipeline_.handle());
   const VkDescriptorSet set = pick_descriptors_.handle();
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pick_pipeline_.layout(), 0, 1, &set, 0, nullptr);
-  vkCmdPushConstants(cmd, pick_pipeline_.layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(feedback_), &feedback_);
+  context_->fn().vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pick_pipeline_.layout(), 0, 1, &set, 0, nullptr);
+  context_->fn().vkCmdPushConstants(cmd, pick_pipeline_.layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(feedback_), &feedback_);
   const uint32_t texels = feedback_.width * feedback_.height;
-  vkCmdDispatch(cmd, (texels + gpu::TVT_FEEDBACK_GROUP - 1) / gpu::TVT_FEEDBACK_GROUP, 1, 1);
-  vk::Context::transition(cmd, image, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
+  context_->fn().vkCmdDispatch(cmd, (texels + gpu::TVT_FEEDBACK_GROUP - 1) / gpu::TVT_FEEDBACK_GROUP, 1, 1);
+  context_->transition(cmd, image, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
 }
 
 ImageRGBA8 TerrainRenderer::render(const Camera& camera) {

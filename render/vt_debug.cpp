@@ -22,12 +22,12 @@ ImageRGBA8 cache_atlas_image(vk::Context& context, const vk::Image& cache, uint3
   const VkDeviceSize layer_bytes = VkDeviceSize(s) * s * 4;
   vk::Buffer host = context.create_buffer(layer_bytes * n, VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
   context.run_commands([&](VkCommandBuffer cmd) {
-    vk::Context::transition(cmd, cache, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
+    context.transition(cmd, cache, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
     VkBufferImageCopy region{};
     region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, n};
     region.imageExtent = {s, s, 1};
-    vkCmdCopyImageToBuffer(cmd, cache.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, host.handle(), 1, &region);
-    vk::Context::transition(cmd, cache, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL);
+    context.fn().vkCmdCopyImageToBuffer(cmd, cache.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, host.handle(), 1, &region);
+    context.transition(cmd, cache, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL);
   });
   ImageRGBA8 out(int(cols * (cell + 1) + 1), int(rows * (cell + 1) + 1));
   // After a failed Vulkan call (latched on the context; callers check its status) the image is black.
@@ -82,7 +82,7 @@ ImageRGBA8 feedback_image(vk::Context& context, const vk::Buffer& feedback, uint
   vk::Buffer host = context.create_buffer(bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
   context.run_commands([&](VkCommandBuffer cmd) {
     const VkBufferCopy copy{0, 0, bytes};
-    vkCmdCopyBuffer(cmd, feedback.handle(), host.handle(), 1, &copy);
+    context.fn().vkCmdCopyBuffer(cmd, feedback.handle(), host.handle(), 1, &copy);
   });
   ImageRGBA8 out{int(width), int(height)};
   if (!host || !context.status()) return out;  // a failed Vulkan call (latched): black
@@ -98,12 +98,12 @@ ImageRGBA8 feedback_image(vk::Context& context, const vk::Buffer& feedback, uint
 std::vector<uint8_t> page_table_bytes(vk::Context& context, const vk::Buffer& entries) {
   vk::Buffer host = context.create_buffer(entries.size(), VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
   context.run_commands([&](VkCommandBuffer cmd) {
-    vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+    context.memory_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
                                 VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
                                 VK_ACCESS_TRANSFER_READ_BIT);
     const VkBufferCopy copy{0, 0, entries.size()};
-    vkCmdCopyBuffer(cmd, entries.handle(), host.handle(), 1, &copy);
-    vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_HOST_BIT,
+    context.fn().vkCmdCopyBuffer(cmd, entries.handle(), host.handle(), 1, &copy);
+    context.memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_HOST_BIT,
                                 VK_ACCESS_HOST_READ_BIT);
   });
   if (!host || !context.status()) return std::vector<uint8_t>(entries.size(), 0);  // a failed Vulkan call (latched)

@@ -42,8 +42,8 @@ Result<std::unique_ptr<VtSystem>> VtSystem::create(vk::Context& context, const P
       context.create_image(VK_FORMAT_R8G8B8A8_UNORM, vt.slot_texels(), vt.slot_texels(), options.cache_slots, usage));
   if (!*cache) return context.status().error();  // the producers size themselves on it
   // By value: with deferred set-up (gpu/context.h) this runs after create() returned.
-  context.run_commands([image = cache.get()](VkCommandBuffer cmd) {
-    vk::Context::transition(cmd, *image, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL);
+  context.run_commands([ctx = &context, image = cache.get()](VkCommandBuffer cmd) {
+    ctx->transition(cmd, *image, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL);
   });
   std::shared_ptr<PageProducer> producer = options.producer;
   if (!producer) {
@@ -166,12 +166,12 @@ Status VtSystem::record(VkCommandBuffer cmd) {
   if (auto st = context_->status(); !st) return st;
   // Earlier frames (possibly still in flight) sample the cache, entries and info that this
   // frame rewrites: their reads finish first (WAR, an execution dependency suffices).
-  vkCmdPipelineBarrier(cmd,
+  context_->fn().vkCmdPipelineBarrier(cmd,
                        VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT |
                            VK_PIPELINE_STAGE_TRANSFER_BIT,
                        VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 0, nullptr, 0, nullptr,
                        0, nullptr);
-  vkCmdUpdateBuffer(cmd, info_buffer_.handle(), 0, sizeof(info_), &info_);
+  context_->fn().vkCmdUpdateBuffer(cmd, info_buffer_.handle(), 0, sizeof(info_), &info_);
   outcome_.clear();
   const Status produced = producer_->record(cmd, outcome_);
   take_outcome();
@@ -197,16 +197,16 @@ Status VtSystem::record(VkCommandBuffer cmd) {
   }
   stats_.table_updates = uint32_t(pending_updates_.size());
   if (!pending_updates_.empty()) {
-    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, scatter_.handle());
+    context_->fn().vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, scatter_.handle());
     const VkDescriptorSet set = scatter_set_.handle();
-    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, scatter_.layout(), 0, 1, &set, 0, nullptr);
+    context_->fn().vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, scatter_.layout(), 0, 1, &set, 0, nullptr);
     const gpu::TvtScatterPush push{first, uint32_t(pending_updates_.size())};
-    vkCmdPushConstants(cmd, scatter_.layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
-    vkCmdDispatch(cmd, (push.count + gpu::TVT_SCATTER_GROUP - 1) / gpu::TVT_SCATTER_GROUP, 1, 1);
+    context_->fn().vkCmdPushConstants(cmd, scatter_.layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
+    context_->fn().vkCmdDispatch(cmd, (push.count + gpu::TVT_SCATTER_GROUP - 1) / gpu::TVT_SCATTER_GROUP, 1, 1);
   }
   pending_updates_.clear();
   // Composed texels, the info and scattered entries become visible to every later read.
-  vk::Context::memory_barrier(
+  context_->memory_barrier(
       cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
       VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT,
       VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,

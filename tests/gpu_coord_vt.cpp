@@ -128,12 +128,12 @@ std::vector<uint32_t> read_slots(vk::Context& ctx, const vk::Image& cache) {
   const VkDeviceSize bytes = VkDeviceSize(cache.width()) * cache.height() * 4 * cache.layers();
   vk::Buffer host = ctx.create_buffer(bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
   ctx.run_commands([&](VkCommandBuffer cmd) {
-    vk::Context::transition(cmd, cache, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
+    ctx.transition(cmd, cache, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
     VkBufferImageCopy region{};
     region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, cache.layers()};
     region.imageExtent = {cache.width(), cache.height(), 1};
     vkCmdCopyImageToBuffer(cmd, cache.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, host.handle(), 1, &region);
-    vk::Context::transition(cmd, cache, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL);
+    ctx.transition(cmd, cache, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL);
   });
   std::vector<uint32_t> out(bytes / 4);
   std::memcpy(out.data(), host.mapped(), bytes);

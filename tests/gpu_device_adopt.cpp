@@ -209,11 +209,11 @@ TEST(AdoptDevice, AnAdoptedContextAllocatesThroughTheClientsCallbacksAndLeavesTh
       vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline.layout(), 0, 1, &s, 0, nullptr);
       vkCmdPushConstants(cmd, pipeline.layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
       vkCmdDispatch(cmd, (count + gpu::TVT_TEST_FILL_GROUP - 1) / gpu::TVT_TEST_FILL_GROUP, 1, 1);
-      vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT,
+      ctx.memory_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT,
                                   VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_READ_BIT);
       const VkBufferCopy region{0, 0, VkDeviceSize(count) * 4};
       vkCmdCopyBuffer(cmd, values.handle(), readback.handle(), 1, &region);
-      vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
+      ctx.memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
                                   VK_PIPELINE_STAGE_HOST_BIT, VK_ACCESS_HOST_READ_BIT);
     });
     const auto* got = static_cast<const uint32_t*>(readback.mapped());
@@ -237,6 +237,110 @@ TEST(AdoptDevice, AnAdoptedContextAllocatesThroughTheClientsCallbacksAndLeavesTh
   vkDestroyBuffer(h.device, buffer, nullptr);
   EXPECT_TRUE(logged.empty());
   expect_no_messages(*device);
+}
+
+// The client's own Vulkan dispatch: a vkGetInstanceProcAddr that hands out the loader's
+// functions, except that vkGetDeviceProcAddr is the client's, which wraps vkCreateBuffer,
+// vkCmdDispatch and vkQueueSubmit in counters and can withhold one function by name. terravt
+// must call Vulkan only through what this returns (its private table), never the loader's
+// exports.
+struct ClientDispatch {
+  static inline PFN_vkGetDeviceProcAddr real_gdpa = nullptr;
+  static inline PFN_vkCreateBuffer real_create_buffer = nullptr;
+  static inline PFN_vkCmdDispatch real_dispatch = nullptr;
+  static inline PFN_vkQueueSubmit real_submit = nullptr;
+  static inline int buffers = 0, dispatches = 0, submits = 0;
+  static inline std::string withheld;
+
+  static VKAPI_ATTR VkResult VKAPI_CALL create_buffer(VkDevice d, const VkBufferCreateInfo* i,
+                                                      const VkAllocationCallbacks* a, VkBuffer* b) {
+    ++buffers;
+    return real_create_buffer(d, i, a, b);
+  }
+  static VKAPI_ATTR void VKAPI_CALL dispatch(VkCommandBuffer c, uint32_t x, uint32_t y, uint32_t z) {
+    ++dispatches;
+    real_dispatch(c, x, y, z);
+  }
+  static VKAPI_ATTR VkResult VKAPI_CALL submit(VkQueue q, uint32_t n, const VkSubmitInfo* s, VkFence f) {
+    ++submits;
+    return real_submit(q, n, s, f);
+  }
+  static VKAPI_ATTR PFN_vkVoidFunction VKAPI_CALL gdpa(VkDevice device, const char* name) {
+    const std::string n = name;
+    if (n == withheld) return nullptr;
+    if (n == "vkCreateBuffer") {
+      real_create_buffer = reinterpret_cast<PFN_vkCreateBuffer>(real_gdpa(device, name));
+      return reinterpret_cast<PFN_vkVoidFunction>(&create_buffer);
+    }
+    if (n == "vkCmdDispatch") {
+      real_dispatch = reinterpret_cast<PFN_vkCmdDispatch>(real_gdpa(device, name));
+      return reinterpret_cast<PFN_vkVoidFunction>(&dispatch);
+    }
+    if (n == "vkQueueSubmit") {
+      real_submit = reinterpret_cast<PFN_vkQueueSubmit>(real_gdpa(device, name));
+      return reinterpret_cast<PFN_vkVoidFunction>(&submit);
+    }
+    return real_gdpa(device, name);
+  }
+  static VKAPI_ATTR PFN_vkVoidFunction VKAPI_CALL gipa(VkInstance instance, const char* name) {
+    const std::string n = name;
+    if (n == withheld) return nullptr;
+    if (n == "vkGetDeviceProcAddr") {
+      real_gdpa = reinterpret_cast<PFN_vkGetDeviceProcAddr>(vkGetInstanceProcAddr(instance, name));
+      return reinterpret_cast<PFN_vkVoidFunction>(&gdpa);
+    }
+    return vkGetInstanceProcAddr(instance, name);
+  }
+};
+
+TEST(AdoptDevice, EveryVulkanCallGoesThroughTheClientsGetInstanceProcAddr) {
+  auto device = client_device();
+  ASSERT_TRUE(device);
+  terravt::DeviceHandles h = device->handles();
+  h.get_instance_proc_addr = &ClientDispatch::gipa;
+  ClientDispatch::buffers = ClientDispatch::dispatches = ClientDispatch::submits = 0;
+  ClientDispatch::withheld.clear();
+  {
+    auto adopted = vk::Context::adopt(h);
+    ASSERT_TRUE(adopted.ok()) << adopted.error().message;
+    vk::Context& ctx = **adopted;
+    const uint32_t count = 1000;
+    const vk::ComputeBinding bindings[] = {{0, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}};
+    vk::ComputePipeline pipeline =
+        ctx.create_compute_pipeline(shaders::test_fill_comp(), bindings, sizeof(gpu::TvtTestFillPush));
+    vk::DescriptorSet set = ctx.allocate_descriptor_set(pipeline);
+    vk::Buffer values = ctx.create_buffer(VkDeviceSize(count) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+    vk::Buffer more = ctx.create_buffer(256, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
+    EXPECT_EQ(ClientDispatch::buffers, 2);
+    set.write_buffer(0, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, values);
+    const gpu::TvtTestFillPush push{count, 777u};
+    // terravt's own recording helper (a barrier through its table) inside its own submission.
+    ctx.run_commands([&](VkCommandBuffer cmd) {
+      const auto& fn = ctx.fn();
+      fn.vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline.handle());
+      const VkDescriptorSet s = set.handle();
+      fn.vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline.layout(), 0, 1, &s, 0, nullptr);
+      fn.vkCmdPushConstants(cmd, pipeline.layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
+      fn.vkCmdDispatch(cmd, (count + gpu::TVT_TEST_FILL_GROUP - 1) / gpu::TVT_TEST_FILL_GROUP, 1, 1);
+      ctx.memory_barrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT,
+                         VK_PIPELINE_STAGE_HOST_BIT, VK_ACCESS_HOST_READ_BIT);
+    });
+    EXPECT_EQ(ClientDispatch::dispatches, 1);
+    EXPECT_EQ(ClientDispatch::submits, 1);
+    EXPECT_NE(static_cast<const uint32_t*>(values.mapped())[0], 0u);
+    EXPECT_TRUE(ctx.status().ok());
+  }
+  expect_no_messages(*device);
+
+  // A function the client's dispatch does not provide is named, and nothing is adopted.
+  for (const char* name : {"vkCmdDispatch", "vkGetPhysicalDeviceProperties2", "vkGetDeviceProcAddr"}) {
+    ClientDispatch::withheld = name;
+    auto refused = vk::Context::adopt(h);
+    ASSERT_FALSE(refused.ok()) << name;
+    EXPECT_EQ(refused.error().kind, terravt::ErrorKind::unsupported_device) << name;
+    EXPECT_TRUE(contains(refused.error().message, name)) << refused.error().message;
+  }
+  ClientDispatch::withheld.clear();
 }
 
 }  // namespace

@@ -35,12 +35,12 @@ std::vector<uint8_t> read_cache(vk::Context& ctx, const vk::Image& cache) {
   const VkDeviceSize layer = VkDeviceSize(cache.width()) * cache.height() * 4;
   vk::Buffer host = ctx.create_buffer(layer * cache.layers(), VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
   ctx.run_commands([&](VkCommandBuffer cmd) {
-    vk::Context::transition(cmd, cache, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
+    ctx.transition(cmd, cache, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
     VkBufferImageCopy region{};
     region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, cache.layers()};
     region.imageExtent = {cache.width(), cache.height(), 1};
     vkCmdCopyImageToBuffer(cmd, cache.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, host.handle(), 1, &region);
-    vk::Context::transition(cmd, cache, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL);
+    ctx.transition(cmd, cache, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL);
   });
   const auto* p = static_cast<const uint8_t*>(host.mapped());
   return std::vector<uint8_t>(p, p + layer * cache.layers());
@@ -220,7 +220,7 @@ TEST_F(GpuFramesInFlight, RingReportsEveryFrameOnceWithItsStagesInOrder) {
     EXPECT_FALSE(r.completed(f));
     vkCmdFillBuffer(cmd, scratch.handle(), 0, VK_WHOLE_SIZE, uint32_t(f));
     r.mark();
-    vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
+    ctx().memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
                                 VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT);
     vkCmdFillBuffer(cmd, scratch.handle(), 0, VK_WHOLE_SIZE, ~uint32_t(f));
     r.mark();

@@ -215,7 +215,7 @@ Readback read_back(const Client& client, const terravt::VirtualTexture& vt, cons
                          1, &back);
     const VkBufferCopy all{0, 0, b.table_bytes};
     vkCmdCopyBuffer(cmd, b.table_buffer, table.handle(), 1, &all);
-    vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
+    (*ctx)->memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
                                 VK_PIPELINE_STAGE_HOST_BIT, VK_ACCESS_HOST_READ_BIT);
   });
   Readback r;

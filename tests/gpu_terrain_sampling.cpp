@@ -30,7 +30,7 @@ std::vector<uint32_t> read_buffer(vk::Context& g, const vk::Buffer& src) {
   g.run_commands([&](VkCommandBuffer cmd) {
     const VkBufferCopy region{0, 0, src.size()};
     vkCmdCopyBuffer(cmd, src.handle(), staging.handle(), 1, &region);
-    vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
+    g.memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
                                 VK_PIPELINE_STAGE_HOST_BIT, VK_ACCESS_HOST_READ_BIT);
   });
   std::vector<uint32_t> out(size_t(src.size() / 4));
@@ -43,12 +43,12 @@ std::vector<uint8_t> read_level(vk::Context& g, const vk::Image& image, uint32_t
   const uint32_t w = image.width() >> level, h = image.height() >> level;
   vk::Buffer staging = g.create_buffer(VkDeviceSize(w) * h * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
   g.run_commands([&](VkCommandBuffer cmd) {
-    vk::Context::transition(cmd, image, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
+    g.transition(cmd, image, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
     VkBufferImageCopy region{};
     region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, level, 0, 1};
     region.imageExtent = {w, h, 1};
     vkCmdCopyImageToBuffer(cmd, image.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, staging.handle(), 1, &region);
-    vk::Context::transition(cmd, image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL);
+    g.transition(cmd, image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL);
   });
   std::vector<uint8_t> out(size_t(w) * h * 4);
   std::memcpy(out.data(), staging.mapped(), out.size());

@@ -64,7 +64,7 @@ TEST(VirtualTexture, ComposesTheRequestedPagesIntoTheClientsCommandBuffersAndMap
   (*ctx)->run_commands([&](VkCommandBuffer cmd) {
     const VkBufferCopy region{0, 0, b.table_bytes};
     vkCmdCopyBuffer(cmd, b.table_buffer, readback.handle(), 1, &region);
-    vk::Context::memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
+    (*ctx)->memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
                                 VK_PIPELINE_STAGE_HOST_BIT, VK_ACCESS_HOST_READ_BIT);
   });
   const auto* entries = static_cast<const uint32_t*>(readback.mapped());

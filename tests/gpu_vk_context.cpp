@@ -47,18 +47,16 @@ class ScopedEnv {
   std::optional<std::string> old_;
 };
 
-// Global memory barrier for readbacks and copy chains inside one command buffer.
-constexpr auto barrier = &vk::Context::memory_barrier;
 
 // Copies a whole device buffer into a new host-visible buffer and returns its bytes.
 std::vector<unsigned char> read_back(vk::Context& ctx, const vk::Buffer& src) {
   vk::Buffer host = ctx.create_buffer(src.size(), VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
   ctx.run_commands([&](VkCommandBuffer cmd) {
-    barrier(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, VK_ACCESS_MEMORY_WRITE_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
+    ctx.memory_barrier(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, VK_ACCESS_MEMORY_WRITE_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
             VK_ACCESS_TRANSFER_READ_BIT);
     const VkBufferCopy region{0, 0, src.size()};
     vkCmdCopyBuffer(cmd, src.handle(), host.handle(), 1, &region);
-    barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_HOST_BIT,
+    ctx.memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_HOST_BIT,
             VK_ACCESS_HOST_READ_BIT);
   });
   const auto* p = static_cast<const unsigned char*>(host.mapped());
@@ -157,19 +155,19 @@ TEST_F(GpuTest, StorageImageArrayRoundTripsEveryTexelOfEveryLayer) {
 
   const TvtTestImagePush push{w, h, layers, 0x5au};
   ctx().run_commands([&](VkCommandBuffer cmd) {
-    vk::Context::transition(cmd, image, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL);
+    ctx().transition(cmd, image, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL);
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline.handle());
     const VkDescriptorSet s = set.handle();
     vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline.layout(), 0, 1, &s, 0, nullptr);
     vkCmdPushConstants(cmd, pipeline.layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
     const uint32_t g = gpu::TVT_TEST_IMAGE_GROUP;
     vkCmdDispatch(cmd, (w + g - 1) / g, (h + g - 1) / g, layers);
-    vk::Context::transition(cmd, image, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
+    ctx().transition(cmd, image, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
     VkBufferImageCopy region{};
     region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, layers};
     region.imageExtent = {w, h, 1};
     vkCmdCopyImageToBuffer(cmd, image.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, host.handle(), 1, &region);
-    barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_HOST_BIT,
+    ctx().memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_HOST_BIT,
             VK_ACCESS_HOST_READ_BIT);
   });
 
@@ -205,7 +203,7 @@ TEST_F(GpuTest, UploadOfManyMegabytesIsByteExactAndStaysInsideItsRange) {
   EXPECT_EQ(dst.mapped(), nullptr);
   ctx().run_commands([&](VkCommandBuffer cmd) {
     vkCmdFillBuffer(cmd, dst.handle(), 0, VK_WHOLE_SIZE, 0xabababab);
-    barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
+    ctx().memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
             VK_ACCESS_TRANSFER_WRITE_BIT | VK_ACCESS_TRANSFER_READ_BIT);
   });
 

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Installs terravt from a build tree into a temporary prefix and checks the package as an engine
 # sees it: only public headers, none pulling a private dependency; libterravt exports only
-# terravt:: symbols and carries its SONAME; find_package(terravt CONFIG) and pkg-config both
+# terravt:: symbols, carries its SONAME and imports no Vulkan function; find_package(terravt CONFIG) and pkg-config both
 # build a client that runs. Usage: check_package.sh BUILD_DIR SOURCE_DIR
 set -euo pipefail
 build=$1
@@ -66,6 +66,14 @@ leaked=$(nm -D --defined-only -C "$lib" | awk '$2 ~ /[TWBDRVu]/' |
          awk '!($2 ~ /[WVu]/ && $0 ~ /std::/)' | cut -d' ' -f3- |
          grep -vE '^((vtable|typeinfo|typeinfo name) for )?terravt::' | grep -vE '^(_init|_fini|__bss_start|_edata|_end)$' || true)
 if [ -n "$leaked" ]; then echo "FAIL: libterravt exports non-API symbols:"; echo "$leaked" | head -20; exit 1; fi
+
+# Vulkan through the client's vkGetInstanceProcAddr only: libterravt imports no Vulkan function
+# and does not link the loader (an engine that loads Vulkan its own way gets no second loader).
+vk_imports=$(nm -D --undefined-only "$lib" | awk '{print $NF}' | grep -E '^vk' || true)
+if [ -n "$vk_imports" ]; then echo "FAIL: libterravt calls the Vulkan loader directly:"; echo "$vk_imports" | head; exit 1; fi
+if objdump -p "$lib" | grep -E 'NEEDED +libvulkan' >/dev/null; then
+  echo "FAIL: libterravt links libvulkan"; exit 1
+fi
 
 # find_package(terravt CONFIG)
 tvt_build_client "$src/tests/package" "$work/consumer"
