@@ -320,6 +320,11 @@ Status VirtualTexture::record_feedback(VkCommandBuffer cmd, VkBuffer feedback, V
   if (cmd == VK_NULL_HANDLE || feedback == VK_NULL_HANDLE)
     return invalid(std::string("record_feedback(): ") + (cmd == VK_NULL_HANDLE ? "cmd" : "feedback") +
                    " is VK_NULL_HANDLE");
+  // The buffer is bound as a storage buffer from `offset`: Vulkan requires the device's alignment.
+  if (const VkDeviceSize align = m.context->properties().limits.minStorageBufferOffsetAlignment;
+      align > 0 && offset % align != 0)
+    return invalid("record_feedback(): offset " + std::to_string(offset) +
+                   " is not a multiple of the device's minStorageBufferOffsetAlignment (" + std::to_string(align) + ")");
   m.record_setup(cmd);
   m.compactor->record_unfenced(cmd, feedback, offset, m.compactions);
   m.compacted.emplace_back(*m.last_begun, m.compactions++);

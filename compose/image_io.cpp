@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <new>
 #include <string>
 #include <system_error>
 #include <vector>
@@ -79,13 +80,28 @@ Result<std::unique_ptr<OIIO::ImageInput>> open_input(const std::string& path) {
   if (spec.width > detail::k_max_image_side || spec.height > detail::k_max_image_side)
     return make_error(path + ": image too large (" + std::to_string(spec.width) + " x " + std::to_string(spec.height) +
                       " texels; at most " + std::to_string(detail::k_max_image_side) + " per side)");
+  if (spec.nchannels > detail::k_max_image_channels)
+    return make_error(path + ": " + std::to_string(spec.nchannels) + " channels; at most " +
+                      std::to_string(detail::k_max_image_channels) + " are accepted");
+  if (const uint64_t bytes = uint64_t(spec.width) * uint64_t(spec.height) * uint64_t(spec.nchannels) * sizeof(float);
+      bytes > detail::k_max_image_float_bytes)
+    return make_error(path + ": image too large (" + std::to_string(spec.width) + " x " + std::to_string(spec.height) +
+                      " texels x " + std::to_string(spec.nchannels) + " channels = " + std::to_string(bytes >> 20) +
+                      " MiB as float; at most " + std::to_string(detail::k_max_image_float_bytes >> 20) + " MiB)");
   return in;
 }
 
 // Reads every channel of subimage 0, mip 0 as float and rejects non-finite texels.
 Result<ImageF> read_all_channels(const std::string& path, OIIO::ImageInput& in) {
   const OIIO::ImageSpec& spec = in.spec();
-  ImageF image(spec.width, spec.height, spec.nchannels);
+  ImageF image;
+  try {
+    image = ImageF(spec.width, spec.height, spec.nchannels);
+  } catch (const std::bad_alloc&) {
+    return Error{ErrorKind::out_of_memory, path + ": not enough memory for its " + std::to_string(spec.width) + " x " +
+                                               std::to_string(spec.height) + " x " + std::to_string(spec.nchannels) +
+                                               " texels as float"};
+  }
   bool read = false;
   {
     [[maybe_unused]] DependencyLeaksIgnored scope;

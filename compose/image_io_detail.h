@@ -3,6 +3,7 @@
 // (file named in every error, size limits, non-finite texels rejected) and the same atomic
 // write (temporary file in the target folder, then rename).
 #pragma once
+#include <cstdint>
 #include <string>
 #include <utility>
 #include <vector>
@@ -22,6 +23,11 @@ struct NamedFloatImage {
 
 // Largest accepted width or height of any image file, texels.
 inline constexpr int k_max_image_side = 16384;
+// Most channels of any image file (terravt's own meta-textures have 8; a header may claim
+// thousands), and most bytes its texels take as float: a 16384^2 RGBA image, 4 GiB. A file
+// beyond either is refused from its header, before anything is allocated.
+inline constexpr int k_max_image_channels = 64;
+inline constexpr uint64_t k_max_image_float_bytes = 16384ull * 16384ull * 4ull * sizeof(float);
 
 Result<NamedFloatImage> read_named_float_image(const std::string& path);
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <new>
 #include <numbers>
 
 #include "compose/procedural.h"
@@ -111,7 +112,7 @@ double window_weight(double v, double lo, double hi, double fade) {
   return smooth(lo - fade, lo, v) * (1.0 - smooth(hi, hi + fade, v));
 }
 
-Result<SceneAssets> load_scene_assets(const SceneDesc& desc) {
+static Result<SceneAssets> load_scene_assets_unguarded(const SceneDesc& desc) {
   SceneAssets assets;
   assets.desc = desc;
   auto hf = load_heightfield(desc);
@@ -142,6 +143,23 @@ Result<SceneAssets> load_scene_assets(const SceneDesc& desc) {
     }
   }
   return assets;
+}
+
+// A scene whose files each pass their own limits can still ask for more than the machine has
+// (a 16384^2 heightmap and many materials: weights alone are 1 GiB per material). Running out
+// is an error naming the scene, never an abort.
+Result<SceneAssets> load_scene_assets(const SceneDesc& desc) {
+  try {
+    return load_scene_assets_unguarded(desc);
+  } catch (const std::bad_alloc&) {
+    return Error{ErrorKind::out_of_memory,
+                 desc.source_path + ": not enough memory to load the scene (heightmap " +
+                     std::to_string(desc.terrain.heightmap.image_path.empty() ? desc.terrain.heightmap.size : 0) +
+                     (desc.terrain.heightmap.image_path.empty() ? " texels a side" : " from " + desc.terrain.heightmap.image_path) +
+                     ", " + std::to_string(desc.materials.size()) +
+                     " materials, one float weight layer each at the heightmap's size, plus their images); use a "
+                     "smaller heightmap or fewer materials"};
+  }
 }
 
 }  // namespace tvt

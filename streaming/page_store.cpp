@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <new>
 
 #include "streaming/file_io.h"
 #include "streaming/store_format.h"
@@ -267,7 +268,7 @@ const StoreEntry* PageStoreReader::find(const PageId& page) const {
 std::unique_ptr<PageStoreReader::Decoder> PageStoreReader::make_decoder() const {
   std::unique_ptr<Decoder> d(new Decoder());
   d->dctx_ = ZSTD_createDCtx();
-  TVT_CHECK(d->dctx_ != nullptr);
+  if (d->dctx_ == nullptr) throw std::bad_alloc();  // zstd's allocation failure, as C++ reports any other
   return d;
 }
 
@@ -333,11 +334,16 @@ PageError PageStoreReader::decode_blob(const PageId& page, std::span<uint8_t> ou
 // Compression
 
 PageCompressor::PageCompressor(const StoreDesc& desc) : level_(desc.zstd_level) {
+  // zstd returns null only when its allocation fails (validate(StoreDesc) loaded the
+  // dictionary): reported as C++ reports any other allocation failure.
   cctx_ = ZSTD_createCCtx();
-  TVT_CHECK(cctx_ != nullptr);
+  if (cctx_ == nullptr) throw std::bad_alloc();
   if (!desc.dictionary.empty()) {
     cdict_ = ZSTD_createCDict(desc.dictionary.data(), desc.dictionary.size(), level_);
-    TVT_CHECK(cdict_ != nullptr);  // validate(StoreDesc) checked that zstd loads it
+    if (cdict_ == nullptr) {
+      ZSTD_freeCCtx(cctx_);
+      throw std::bad_alloc();
+    }
   }
 }
 
@@ -347,11 +353,14 @@ PageCompressor::~PageCompressor() {
 }
 
 PageDecompressor::PageDecompressor(const StoreDesc& desc) {
-  dctx_ = ZSTD_createDCtx();
-  TVT_CHECK(dctx_ != nullptr);
+  dctx_ = ZSTD_createDCtx();  // null only when zstd's allocation fails (see PageCompressor)
+  if (dctx_ == nullptr) throw std::bad_alloc();
   if (!desc.dictionary.empty()) {
     ddict_ = ZSTD_createDDict(desc.dictionary.data(), desc.dictionary.size());
-    TVT_CHECK(ddict_ != nullptr);  // validate(desc) loaded it
+    if (ddict_ == nullptr) {
+      ZSTD_freeDCtx(dctx_);
+      throw std::bad_alloc();
+    }
   }
 }
 

@@ -15,6 +15,7 @@
 #include <chrono>
 #include <cstring>
 #include <filesystem>
+#include <memory>
 #include <unordered_set>
 
 #include "streaming/bake.h"
@@ -96,8 +97,14 @@ Result<SalvageReport> salvage_store(const std::string& damaged, const std::strin
     desc.dictionary.assign(dict.begin(), dict.end());
   }
 
-  ZSTD_DCtx* dctx = ZSTD_createDCtx();
-  ZSTD_DDict* ddict = desc.dictionary.empty() ? nullptr : ZSTD_createDDict(desc.dictionary.data(), desc.dictionary.size());
+  const std::unique_ptr<ZSTD_DCtx, size_t (*)(ZSTD_DCtx*)> dctx_owner(ZSTD_createDCtx(), ZSTD_freeDCtx);
+  const std::unique_ptr<ZSTD_DDict, size_t (*)(ZSTD_DDict*)> ddict_owner(
+      desc.dictionary.empty() ? nullptr : ZSTD_createDDict(desc.dictionary.data(), desc.dictionary.size()), ZSTD_freeDDict);
+  if (!dctx_owner) return Error{ErrorKind::out_of_memory, damaged + ": zstd could not allocate a decompression context"};
+  if (!desc.dictionary.empty() && !ddict_owner)
+    return make_error(damaged + ": dictionary: zstd cannot load it (malformed zstd dictionary); nothing to salvage");
+  ZSTD_DCtx* const dctx = dctx_owner.get();
+  ZSTD_DDict* const ddict = ddict_owner.get();
   struct Kept {
     PageId page;
     uint64_t at;  // blob offset in the damaged file
@@ -138,8 +145,6 @@ Result<SalvageReport> salvage_store(const std::string& damaged, const std::strin
     pos = to;
   }
   report.skipped_bytes += file_bytes - pos;
-  ZSTD_freeDDict(ddict);
-  ZSTD_freeDCtx(dctx);
   if (kept.empty()) return make_error(damaged + ": no intact page record found; nothing to salvage, " + out + " not written");
 
   std::vector<PageId> plan;

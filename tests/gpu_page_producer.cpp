@@ -462,6 +462,14 @@ TEST(PageProducer, FeedbackWrittenOnTheGpuIsCompactedThereAndAsksForItsPages) {
       EXPECT_EQ(vt.stats().feedback_frame, f - 2);  // the newest completed frame's feedback
     }
     ASSERT_TRUE(vt.record(cmd).ok());
+    // An offset the device cannot bind a storage buffer at is refused; nothing is recorded.
+    if (const VkDeviceSize align = (*ctx)->properties().limits.minStorageBufferOffsetAlignment; align > 1) {
+      const terravt::Status misaligned = vt.record_feedback(cmd, feedback.handle(), align / 2);
+      ASSERT_FALSE(misaligned.ok());
+      EXPECT_EQ(misaligned.error().kind, terravt::ErrorKind::invalid_argument);
+      EXPECT_NE(misaligned.error().message.find("minStorageBufferOffsetAlignment"), std::string::npos)
+          << misaligned.error().message;
+    }
     const terravt::Status fed = vt.record_feedback(cmd, feedback.handle());
     ASSERT_TRUE(fed.ok()) << fed.error().message;
     const terravt::Status twice = vt.record_feedback(cmd, feedback.handle());

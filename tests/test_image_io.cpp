@@ -190,6 +190,44 @@ TEST_F(ImageIoTest, TooLargeImageIsRejected) {
   EXPECT_TRUE(mentions(r.error(), "too large"));
 }
 
+// A header claiming more channels (or more texel bytes) than any texture has is refused from
+// the header, before the texels are allocated: no bad_alloc from a small hostile file.
+TEST_F(ImageIoTest, HeadersClaimingTooManyChannelsOrBytesAreRejectedBeforeAllocating) {
+  const int channels = 65;
+  std::vector<float> texels(size_t(2) * 2 * channels, 0.5f);
+  {
+    auto out = OIIO::ImageOutput::create(path("many.exr"));
+    ASSERT_TRUE(out);
+    ASSERT_TRUE(out->open(path("many.exr"), OIIO::ImageSpec(2, 2, channels, OIIO::TypeDesc::HALF)));
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, texels.data()));
+    ASSERT_TRUE(out->close());
+  }
+  auto as_float = tvt::read_image_float(path("many.exr"));
+  ASSERT_FALSE(as_float.ok());
+  EXPECT_TRUE(mentions(as_float.error(), path("many.exr"))) << as_float.error().message;
+  EXPECT_TRUE(mentions(as_float.error(), "65 channels")) << as_float.error().message;
+  auto as_rgba = tvt::read_image_rgba8(path("many.exr"));
+  ASSERT_FALSE(as_rgba.ok());
+  EXPECT_TRUE(mentions(as_rgba.error(), "65 channels")) << as_rgba.error().message;
+  // 16384 x 16384 x 5 channels (uint8 in the file, 5 GiB as float): within the side limit,
+  // beyond the byte limit. Written a scanline at a time; the file is a few MB of zeros.
+  const int side = 16384, wide_channels = 5;
+  std::vector<uint8_t> scanline(size_t(side) * wide_channels, 0);
+  {
+    auto out = OIIO::ImageOutput::create(path("huge.tif"));
+    ASSERT_TRUE(out);
+    OIIO::ImageSpec spec(side, side, wide_channels, OIIO::TypeDesc::UINT8);
+    spec.attribute("compression", "zip");
+    ASSERT_TRUE(out->open(path("huge.tif"), spec));
+    for (int y = 0; y < side; ++y) ASSERT_TRUE(out->write_scanline(y, 0, OIIO::TypeDesc::UINT8, scanline.data()));
+    ASSERT_TRUE(out->close());
+  }
+  auto huge = tvt::read_image_float(path("huge.tif"));
+  ASSERT_FALSE(huge.ok());
+  EXPECT_TRUE(mentions(huge.error(), path("huge.tif"))) << huge.error().message;
+  EXPECT_TRUE(mentions(huge.error(), "5120 MiB as float")) << huge.error().message;
+}
+
 TEST_F(ImageIoTest, WriteIntoMissingFolderFailsAndLeavesNothing) {
   const std::string target = path("missing/sub/out.png");
   auto w = tvt::write_image(target, pattern_rgba(4, 4));

@@ -41,18 +41,20 @@ struct Row {
 
 // Times every method on one page set, interleaved round after round; each method keeps its
 // fastest batch, so the ratios compare like with like even when the machine's load drifts.
-std::vector<Row> measure(GpuComposer& composer, const std::vector<PackedScene>& packed, const std::vector<PageId>& pages,
-                         const BenchComposeArgs& a, double texels_per_page) {
+Result<std::vector<Row>> measure(GpuComposer& composer, const std::vector<PackedScene>& packed,
+                                 const std::vector<PageId>& pages, const BenchComposeArgs& a, double texels_per_page) {
   std::vector<Row> rows(packed.size());
   std::vector<double> best(packed.size(), 1e300);
   for (const PackedScene& p : packed) {  // warm-up: pipeline and caches
     composer.set_params(p.params);
-    (void)composer.time_batch(pages, 1);  // measure() runs on a loaded scene (load_all)
+    if (auto t = composer.time_batch(pages, 1); !t) return t.error();  // measure() runs on a loaded scene (load_all)
   }
   for (int round = 0; round < a.repeats; ++round)
     for (size_t i = 0; i < packed.size(); ++i) {
       composer.set_params(packed[i].params);
-      best[i] = std::min(best[i], composer.time_batch(pages, 1).value());
+      auto t = composer.time_batch(pages, 1);
+      if (!t) return t.error();
+      best[i] = std::min(best[i], t.value());
     }
   for (size_t i = 0; i < packed.size(); ++i) {
     Row& row = rows[i];
@@ -62,7 +64,8 @@ std::vector<Row> measure(GpuComposer& composer, const std::vector<PackedScene>& 
     if (!a.skip_cpu) {
       const size_t n = std::min<size_t>(a.cpu_pages, pages.size());
       const auto t0 = std::chrono::steady_clock::now();
-      for (size_t k = 0; k < n; ++k) (void)compose_page_reference(packed[i], pages[k]).value();
+      for (size_t k = 0; k < n; ++k)
+        if (auto page = compose_page_reference(packed[i], pages[k]); !page) return page.error();
       row.cpu_pages_s = double(n) / seconds_since(t0);
       row.cpu_mtexel_s = row.cpu_pages_s * texels_per_page * 1e-6;
     }
@@ -123,9 +126,13 @@ int run_bench_compose(const BenchComposeArgs& a) {
   std::printf("terravt bench compose: %zu pages of %ux%u texels (P=%u + 2x%u border), mip %u, device %s, %d rounds\n",
               dense.size(), vt.slot_texels(), vt.slot_texels(), vt.page_texels, vt.border_texels, a.mip,
               ctx.value()->device_name().c_str(), a.repeats);
-  const std::vector<Row> rows_dense = measure(*composer.value(), packed, dense, a, texels_per_page);
+  auto measured_dense = measure(*composer.value(), packed, dense, a, texels_per_page);
+  if (!measured_dense) return fail(cmd, measured_dense.error().message, 1);
+  const std::vector<Row>& rows_dense = measured_dense.value();
   const double ratio_dense = print_rows("Transition-rich pages (every material present):", rows_dense, !a.skip_cpu);
-  const std::vector<Row> rows_spread = measure(*composer.value(), packed, spread, a, texels_per_page);
+  auto measured_spread = measure(*composer.value(), packed, spread, a, texels_per_page);
+  if (!measured_spread) return fail(cmd, measured_spread.error().message, 1);
+  const std::vector<Row>& rows_spread = measured_spread.value();
   const double ratio_spread = print_rows("Pages spread over the terrain (as a flythrough requests them):", rows_spread, !a.skip_cpu);
 
   if (!a.json_out.empty()) {
@@ -216,10 +223,14 @@ int run_bench_mips(const BenchMipsArgs& a) {
         params.supersample = int(strategies[i]);
         c.set_params(params);
         if (round == 0) {
-          results.push_back(c.compose_pages(pages).value());  // also the warm-up; the scene is loaded
+          auto composed = c.compose_pages(pages);  // also the warm-up; the scene is loaded
+          if (!composed) return fail(cmd, composed.error().message, 1);
+          results.push_back(std::move(composed.value()));
           continue;
         }
-        best[i] = std::min(best[i], c.time_batch(pages, 1).value());
+        auto t = c.time_batch(pages, 1);
+        if (!t) return fail(cmd, t.error().message, 1);
+        best[i] = std::min(best[i], t.value());
       }
     // The truth: level-0 pages composed directly (32 at a time), box-filtered up to mip m.
     gpu::TvtComposeParams level0 = packed->params;

@@ -3,6 +3,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
+#include <new>
 #include <string>
 #include <vector>
 
@@ -41,7 +42,16 @@ int main(int argc, char** argv) {
     const int code = root.exit(e);
     return code == 0 ? 0 : 2;
   }
-  for (const auto& [app, run] : commands)
-    if (app->parsed()) return run();
+  for (const auto& [app, run] : commands) {
+    if (!app->parsed()) continue;
+    // Running out of memory where terravt cannot size the request up front (a scene's images,
+    // zstd's contexts) is an error with the command's name and a non-zero exit, never an abort.
+    try {
+      return run();
+    } catch (const std::bad_alloc&) {
+      std::fprintf(stderr, "terravt %s: out of memory\n", app->get_name().c_str());
+      return 1;
+    }
+  }
   return 2;
 }

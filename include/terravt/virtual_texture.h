@@ -143,6 +143,8 @@ class TERRAVT_API VirtualTexture {
   // or after record()). Its distinct pages, each weighted by the texels that asked for it, join
   // the requests of the first begin_frame() whose `completed` frame is this one or newer; a
   // newer completed frame's feedback replaces an older one's.
+  // `offset` must be a multiple of the device's minStorageBufferOffsetAlignment (else
+  // invalid_argument, nothing recorded).
   Status record_feedback(VkCommandBuffer cmd, VkBuffer feedback, VkDeviceSize offset = 0);
   const FrameStats& stats() const;
 
