@@ -1,4 +1,4 @@
-# `cmake --install`: libterravt (with its SOVERSION links), the public headers, the GLSL
+# `cmake --install`: libterravt (shared, with its SOVERSION links, and static: libterravt.a), the public headers, the GLSL
 # contract (terravt/vt.glsl and the files it includes, under terravt/glsl/), the CMake package
 # (terravtConfig.cmake, version file, targets in the terravt:: namespace) and a pkg-config file.
 # Nothing else is installed: internal headers and libraries stay in the build tree.
@@ -24,6 +24,9 @@ install(FILES ${PROJECT_SOURCE_DIR}/shaders/shared/bridge.h ${PROJECT_SOURCE_DIR
 
 set(TVT_CMAKE_DIR ${CMAKE_INSTALL_LIBDIR}/cmake/terravt)
 install(EXPORT terravtTargets NAMESPACE terravt:: DESTINATION ${TVT_CMAKE_DIR})
+# libterravt.a: its own export set, loaded by the package only for COMPONENTS static.
+install(TARGETS terravt_static EXPORT terravtStaticTargets ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR})
+install(EXPORT terravtStaticTargets NAMESPACE terravt:: DESTINATION ${TVT_CMAKE_DIR})
 configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/terravtConfig.cmake.in
   ${PROJECT_BINARY_DIR}/terravtConfig.cmake INSTALL_DESTINATION ${TVT_CMAKE_DIR})
 # 0.x: minor versions may break the API, so only the same minor is compatible.

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs terravt from a build tree into a temporary prefix and checks the package as an engine
 # sees it: only public headers, none pulling a private dependency; libterravt exports only
-# terravt:: symbols, carries its SONAME and imports no Vulkan function; find_package(terravt CONFIG) and pkg-config both
+# terravt:: symbols, carries its SONAME and imports no Vulkan function; libterravt.a links a
+# client on its own (COMPONENTS static); find_package(terravt CONFIG) and pkg-config both
 # build a client that runs. Usage: check_package.sh BUILD_DIR SOURCE_DIR
 set -euo pipefail
 build=$1
@@ -78,6 +79,24 @@ fi
 # find_package(terravt CONFIG)
 tvt_build_client "$src/tests/package" "$work/consumer"
 "$work/consumer/consumer"
+
+# find_package(terravt CONFIG COMPONENTS static): the same client from libterravt.a alone.
+[ -f "$(dirname "$lib")/libterravt.a" ] || { echo "FAIL: no libterravt.a installed"; exit 1; }
+tvt_build_client "$src/tests/package" "$work/consumer_static" -DTVT_STATIC=ON
+if objdump -p "$work/consumer_static/consumer" | grep -E 'NEEDED +libterravt' >/dev/null; then
+  echo "FAIL: the static client still needs libterravt.so"; exit 1
+fi
+"$work/consumer_static/consumer"
+# A component that does not exist is refused by find_package.
+mkdir -p "$work/bad_component"
+cat > "$work/bad_component/CMakeLists.txt" <<'CMAKE'
+cmake_minimum_required(VERSION 3.25)
+project(bad LANGUAGES CXX)
+find_package(terravt CONFIG REQUIRED COMPONENTS no_such_component)
+CMAKE
+if cmake -S "$work/bad_component" -B "$work/bad_component/build" -DCMAKE_PREFIX_PATH="$prefix" >/dev/null 2>&1; then
+  echo "FAIL: find_package accepted an unknown component"; exit 1
+fi
 
 # pkg-config
 export PKG_CONFIG_PATH=$(dirname "$(find "$prefix" -name terravt.pc)")
