@@ -3,7 +3,7 @@
 //
 // Errors: the first problem found is reported as
 //   "<source_path>: <json pointer>: <what is wrong>, got <value>"
-// The field readers are compose/json_check.h's; a failed check throws there and parse_scene
+// The field readers are json/json_check.h's; a failed check throws there and parse_scene
 // turns it into a Result; nothing escapes. The parser never writes anything; it only checks
 // that referenced files exist.
 #include <array>
@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "compose/json_check.h"
+#include "json/json_check.h"
 #include "compose/procedural.h"
 #include "compose/scene.h"
 

@@ -7,7 +7,7 @@
 #include <cstdlib>
 #include <string_view>
 
-#include "render/camera_file.h"
+#include "terrain/camera_file.h"
 
 namespace {
 

@@ -12,9 +12,9 @@
 
 #include "compose/image.h"
 #include "compose/packed_scene.h"
-#include "render/camera.h"
-#include "render/camera_file.h"
-#include "render/terrain_mesh.h"
+#include "terrain/camera.h"
+#include "terrain/camera_file.h"
+#include "terrain/terrain_mesh.h"
 #include "render/terrain_renderer.h"
 #include "gpu/context.h"
 #include "render/vt_system.h"
@@ -40,7 +40,7 @@ struct FlythroughOptions {
   // Frames recorded ahead of the GPU (gpu/frame_ring.h): the loop blocks only when the GPU
   // is this many frames behind. 1: every frame waits for the previous one.
   uint32_t frames_in_flight = 2;
-  // The camera path and lens (render/camera_file.h); none: the scene's built-in flythrough with
+  // The camera path and lens (terrain/camera_file.h); none: the scene's built-in flythrough with
   // the default lens.
   std::optional<CameraFile> camera;
 };

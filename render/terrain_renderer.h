@@ -16,11 +16,11 @@
 #include <glm/glm.hpp>
 
 #include "compose/scene_assets.h"
-#include "render/camera.h"
+#include "terrain/camera.h"
 #include "render/gpu_composer.h"
 #include "render/plain_texture.h"
 #include "render/render_target.h"
-#include "render/terrain_mesh.h"
+#include "terrain/terrain_mesh.h"
 #include "gpu/context.h"
 #include "shared/terrain_types.h"
 

@@ -11,7 +11,7 @@
 #include <cstdint>
 #include <memory>
 
-#include "render/camera.h"
+#include "terrain/camera.h"
 #include "render/feedback_compactor.h"
 #include "render/terrain_renderer.h"
 #include "render/vt_system.h"

@@ -2,8 +2,8 @@
 # Builds the suite with AddressSanitizer + UBSan into build-asan/ and runs the CPU and GPU tests
 # there; any sanitizer report, a leak included, fails its test. Settings: tests/sanitizers.env,
 # leak suppressions (dependencies only, each with its reason): tests/lsan.supp. Run by
-# scripts/test.sh in CI (CI=true) or with TERRAVT_SANITIZED=1. To run ctest in build-asan by
-# hand, export the same settings first.
+# scripts/test.sh (and so by CI) after the plain suite, unless TERRAVT_SANITIZED=0. To run
+# ctest in build-asan by hand, export the same settings first.
 #
 # Build: -O1 -g1, not RelWithDebInfo's -O2 -g: cheaper to compile and ASan's usual level; line
 # tables are all the stacks need to name file and line. No fuzzers (build/ has their own clang

@@ -1,10 +1,10 @@
-// Camera maths, frustum and camera paths (render/camera.h).
+// Camera maths, frustum and camera paths (terrain/camera.h).
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <numbers>
 
-#include "render/camera.h"
+#include "terrain/camera.h"
 
 namespace tvt {
 namespace {

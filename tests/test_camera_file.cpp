@@ -1,4 +1,4 @@
-// Camera path files (render/camera_file.h): every field parsed and resolved over the ground,
+// Camera path files (terrain/camera_file.h): every field parsed and resolved over the ground,
 // the built-in flythrough written and read back to the same path, every bad field reported
 // with file and JSON pointer, and extreme values giving finite cameras.
 #include <gtest/gtest.h>
@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "render/camera_file.h"
+#include "terrain/camera_file.h"
 
 namespace {
 

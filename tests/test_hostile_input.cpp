@@ -13,10 +13,10 @@
 #include <string>
 
 #include "compose/image.h"
-#include "compose/json_check.h"
+#include "json/json_check.h"
 #include "compose/scene.h"
 #include "compose/scene_assets.h"
-#include "render/camera_file.h"
+#include "terrain/camera_file.h"
 #include "streaming/bake.h"
 #include "streaming/page_store.h"
 #include "support/temp_dir.h"

@@ -1,12 +1,12 @@
 // Terrain chunk grid, LOD selection, frustum culling and the VT texel precision of the
-// raster path (render/terrain_mesh.h, shaders/shared/terrain_types.h).
+// raster path (terrain/terrain_mesh.h, shaders/shared/terrain_types.h).
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <numbers>
 #include <random>
 
-#include "render/terrain_mesh.h"
+#include "terrain/terrain_mesh.h"
 #include "shared/terrain_types.h"
 
 namespace tvt {

@@ -15,7 +15,7 @@
 #include <cstring>
 #include <filesystem>
 
-#include "compose/json_check.h"
+#include "json/json_check.h"
 #include "compose/scene.h"
 #include "render/flythrough.h"
 #include "streaming/file_io.h"

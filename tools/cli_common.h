@@ -10,8 +10,8 @@
 #include <CLI/CLI.hpp>
 
 #include "compose/scene_assets.h"
-#include "render/camera_file.h"
-#include "render/terrain_mesh.h"
+#include "terrain/camera_file.h"
+#include "terrain/terrain_mesh.h"
 #include "gpu/context.h"
 #include "streaming/file_io.h"
 #include "vt/result.h"

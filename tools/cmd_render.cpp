@@ -15,7 +15,7 @@
 
 #include "compose/packed_scene.h"
 #include "compose/scene_identity.h"
-#include "render/camera_file.h"
+#include "terrain/camera_file.h"
 #include "render/flythrough.h"
 #include "render/stored_producer.h"
 #include "streaming/file_io.h"

@@ -1,6 +1,6 @@
 // Terrain raster pass (terrain.vert / terrain.frag, render/terrain_renderer.cpp): bindings,
 // the frame uniform block, the per-chunk push constants and the heightfield addressing
-// shared bit for bit by the vertex shader and the CPU (render/terrain_mesh.cpp).
+// shared bit for bit by the vertex shader and the CPU (terrain/terrain_mesh.cpp).
 // GLSL must enable GL_EXT_shader_explicit_arithmetic_types_int64 before including this.
 #ifndef TVT_SHARED_TERRAIN_TYPES_H
 #define TVT_SHARED_TERRAIN_TYPES_H

@@ -1,5 +1,5 @@
 // Terrain chunk grid, LOD and culling (see terrain_mesh.h).
-#include "render/terrain_mesh.h"
+#include "terrain/terrain_mesh.h"
 
 #include <algorithm>
 #include <bit>

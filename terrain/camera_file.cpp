@@ -1,11 +1,11 @@
 // Camera path files (camera_file.h): JSON -> CameraFile (every field checked) -> CameraPath.
-#include "render/camera_file.h"
+#include "terrain/camera_file.h"
 
 #include <algorithm>
 #include <cmath>
 #include <numbers>
 
-#include "compose/json_check.h"
+#include "json/json_check.h"
 
 namespace tvt {
 

@@ -1,5 +1,5 @@
 // Camera maths and keyframed camera paths (see camera.h).
-#include "render/camera.h"
+#include "terrain/camera.h"
 
 #include <algorithm>
 #include <cmath>

@@ -17,7 +17,7 @@
 #include <vector>
 
 #include "compose/image.h"
-#include "render/camera.h"
+#include "terrain/camera.h"
 #include "vt/result.h"
 #include "vt/vt_config.h"
 

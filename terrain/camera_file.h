@@ -23,7 +23,7 @@
 
 #include <glm/glm.hpp>
 
-#include "render/camera.h"
+#include "terrain/camera.h"
 #include "vt/result.h"
 
 namespace tvt {

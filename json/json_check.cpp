@@ -1,5 +1,5 @@
 // Checked reading of JSON input files (json_check.h).
-#include "compose/json_check.h"
+#include "json/json_check.h"
 
 #include <fcntl.h>
 #include <sys/stat.h>
