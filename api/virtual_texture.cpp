@@ -101,6 +101,8 @@ Result<std::unique_ptr<VirtualTexture>> VirtualTexture::create(const DeviceHandl
   if (!source) return invalid("VirtualTextureDesc::source: not a PageSource value");
   const auto method = tvt::method_from_string(desc.method);
   if (!method) return invalid("VirtualTextureDesc::method: unknown method '" + desc.method + "'");
+  const auto strategy = tvt::mip_strategy_from_string(desc.mip_strategy);
+  if (!strategy) return invalid("VirtualTextureDesc::mip_strategy: " + strategy.error().message);
   if (desc.source != PageSource::composed && desc.store_file.empty() && !desc.producer)
     return invalid("VirtualTextureDesc::store_file: a stored or hybrid source needs a store");
   if (desc.consumer_stages == 0) return invalid("VirtualTextureDesc::consumer_stages: name at least one stage");
@@ -133,9 +135,10 @@ Result<std::unique_ptr<VirtualTexture>> VirtualTexture::create(const DeviceHandl
                                        : tvt::load_scene_file(desc.scene_file);
   if (!scene) return invalid(scene.error().message);
   auto assets = tvt::load_scene_assets(scene.value());
-  if (!assets) return invalid(assets.error().message);
+  if (!assets)  // running out of memory stays out_of_memory; anything else is the input's fault
+    return assets.error().kind == ErrorKind::out_of_memory ? assets.error() : invalid(assets.error().message);
   impl->assets = std::move(assets.value());
-  auto packed = tvt::pack_scene(impl->assets, tvt::options_for(*method));
+  auto packed = tvt::pack_scene(impl->assets, tvt::options_for(*method, strategy.value()));
   if (!packed) return invalid(packed.error().message);
 
   tvt::VtSystemOptions o;
@@ -150,7 +153,10 @@ Result<std::unique_ptr<VirtualTexture>> VirtualTexture::create(const DeviceHandl
     auto store = tvt::PageStoreReader::open(desc.store_file);
     if (!store) return Error{ErrorKind::io, store.error().message};
     o.store = std::move(store.value());
-    o.scene_hash = tvt::scene_identity(impl->assets.desc, *method);
+    // A filtered store composed level 0 alone, where every mip strategy is direct.
+    o.scene_hash = tvt::scene_identity(
+        impl->assets.desc, *method,
+        o.store->desc().pyramid == tvt::StorePyramid::filtered ? tvt::MipStrategy{} : strategy.value());
   }
   auto vt = tvt::VtSystem::create(*impl->context, packed.value(), o);
   if (!vt) return as_input_error(vt.error());

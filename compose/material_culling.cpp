@@ -84,7 +84,9 @@ void MaterialNeeds::merge(const MaterialNeeds& other) {
 MaterialNeeds MaterialCuller::needs(const PageId& page, uint32_t mask) const {
   constexpr double k_margin = 1e-3;  // levels; fp32 log2 of the same product errs by < 1e-6
   MaterialNeeds out;
-  const double footprint = std::ldexp(1.0, int(page.mip)) / double(std::max(params_.supersample, 1));
+  // compose.comp's footprint: min(supersample, 2^mip) samples a side.
+  const double footprint =
+      std::ldexp(1.0, int(page.mip)) / double(std::clamp(params_.supersample, 1, 1 << std::min<int>(int(page.mip), 30)));
   for (int n = 0; n < params_.material_count; ++n) {
     const uint32_t bit = 1u << n;
     if (!(mask & bit)) continue;

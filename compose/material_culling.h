@@ -38,7 +38,7 @@ class MaterialCuller {
   // What composing `page` reads, for the materials in `mask` (mask(page), or every bit when
   // culling is off). compose_sample.glsl reads material n's texture at the trilinear levels
   // floor(l) and floor(l) + 1 of l = clamp(log2(footprint * R / T), 0, mips - 1), footprint =
-  // 2^mip / supersample, and its meta-texture only in FBPB modes while the FBPB fade is
+  // 2^mip / min(supersample, 2^mip), and its meta-texture only in FBPB modes while the FBPB fade is
   // above 0 (l < fade_lod_hi). Conservative by 1e-3 levels against fp32 rounding.
   MaterialNeeds needs(const PageId& page, uint32_t mask) const;
 

@@ -133,8 +133,30 @@ std::optional<Method> method_from_string(std::string_view text) {
   return std::nullopt;
 }
 
-ComposeOptions options_for(Method method) {
+std::string to_string(MipStrategy strategy) {
+  return strategy.supersample <= 1 ? std::string("direct") : "supersample:" + std::to_string(strategy.supersample);
+}
+
+Result<MipStrategy> mip_strategy_from_string(std::string_view text) {
+  const auto bad = [&] {
+    return make_error("mip strategy: must be direct or supersample:S with S a power of two from 2 to 64, got '" +
+                      std::string(text) + "'");
+  };
+  if (text == "direct") return MipStrategy{};
+  constexpr std::string_view k_prefix = "supersample:";
+  if (!text.starts_with(k_prefix)) return bad();
+  const std::string_view digits = text.substr(k_prefix.size());
+  if (digits.empty() || digits.size() > 2 || !std::all_of(digits.begin(), digits.end(), [](char c) { return c >= '0' && c <= '9'; }))
+    return bad();
+  uint32_t s = 0;
+  for (char c : digits) s = s * 10 + uint32_t(c - '0');
+  if (s < 2 || s > 64 || !std::has_single_bit(s)) return bad();
+  return MipStrategy{s};
+}
+
+ComposeOptions options_for(Method method, MipStrategy strategy) {
   ComposeOptions o;
+  o.supersample = strategy.supersample;
   switch (method) {
     case Method::Linear: o.method = Mode::Linear; break;
     case Method::BlendMap: o.method = Mode::BlendMap; break;

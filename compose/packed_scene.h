@@ -6,6 +6,7 @@
 #include <memory>
 #include <optional>
 #include <span>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -18,8 +19,24 @@ namespace tvt {
 struct ComposeOptions {
   std::optional<Mode> method;     // replaces every material's mode but the base's
   uint32_t dpt_layer_limit = 0;   // 0: all DPT layers; n: at most n
-  uint32_t supersample = 1;       // s: s*s sub-samples per texel; power of two, 1 ... 64
+  // s: up to s*s sub-samples per texel, power of two 1 ... 64; a texel of mip m takes
+  // min(s, 2^m)^2, never more samples than the level-0 texels it covers (mip 0 is direct).
+  uint32_t supersample = 1;
 };
+
+// How pages of mip m >= 1 are composed, the user's accuracy/speed knob ("mip strategy"):
+//   direct          one sample per texel, materials read at the footprint's LOD;
+//   supersample:S   the average of min(S, 2^m)^2 samples per texel (S a power of two, 2 ... 64),
+//                   each a direct composition of its share of the footprint.
+// Mip 0 is the same under every strategy. Cost and error per mip: docs/benchmarks.md
+// ("bench mips").
+struct MipStrategy {
+  uint32_t supersample = 1;  // 1: direct
+  friend bool operator==(const MipStrategy&, const MipStrategy&) = default;
+};
+std::string to_string(MipStrategy strategy);  // "direct", "supersample:4"
+// `text` as written above; the error lists the accepted forms.
+Result<MipStrategy> mip_strategy_from_string(std::string_view text);
 
 // The six methods the papers compare, as compose options.
 enum class Method { Linear, BlendMap, Fbpb, Dpt1, Dpt2, FbpbDpt };
@@ -27,7 +44,7 @@ inline constexpr Method k_all_methods[] = {Method::Linear, Method::BlendMap, Met
                                            Method::Dpt1,   Method::Dpt2,     Method::FbpbDpt};
 std::string_view to_string(Method method);  // "linear", "blendmap", "fbpb", "dpt1", "dpt2", "fbpb+dpt2"
 std::optional<Method> method_from_string(std::string_view text);
-ComposeOptions options_for(Method method);
+ComposeOptions options_for(Method method, MipStrategy strategy = {});
 
 // The flat material buffers are laid out at pack time from what is known without texels
 // (MaterialInfo); material n's words are produced on first use (load()) and cached, shared by

@@ -253,7 +253,7 @@ glm::dvec4 compose_texel(const PackedScene& scene, uint32_t mip, int64_t x, int6
   const int64_t last = (int64_t(1) << (p.log2_vt - int(mip))) - 1;
   x = std::clamp<int64_t>(x, 0, last);
   y = std::clamp<int64_t>(y, 0, last);
-  const int64_t s = p.supersample;
+  const int64_t s = std::min<int64_t>(p.supersample, int64_t(1) << mip);  // as compose.comp
   const int sub_shift = int(mip) + gpu::TVT_FIXED_BITS;  // one mip texel = 2^sub_shift fixed units
   const double footprint = std::ldexp(1.0, int(mip)) / double(s);
   glm::dvec4 sum(0.0);

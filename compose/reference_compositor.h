@@ -24,8 +24,8 @@ namespace tvt {
 // `footprint` level-0 texels per side. RGB albedo and A = height, each in [0,1], never NaN.
 glm::dvec4 compose_sample_reference(const PackedScene& scene, int64_t x_fp, int64_t y_fp, double footprint);
 
-// Texel (x, y) of mip `mip`: the average of params.supersample^2 samples, each covering
-// 2^mip / s level-0 texels. Coordinates outside the mip are clamped to its edge.
+// Texel (x, y) of mip `mip`: the average of s^2 samples, s = min(params.supersample, 2^mip),
+// each covering 2^mip / s level-0 texels. Coordinates outside the mip are clamped to its edge.
 glm::dvec4 compose_texel_reference(const PackedScene& scene, uint32_t mip, int64_t x, int64_t y);
 
 // Box-filtered level-0 composition of mip texel (x, y): the ground truth of docs/composition.md.

@@ -11,6 +11,8 @@
 
 namespace tvt {
 
-uint64_t scene_identity(const SceneDesc& scene, Method method);
+// The mip strategy changes pages of mip >= 1: a store baked with one is not another's. Direct
+// adds nothing, so identities of stores baked before the knob existed still match.
+uint64_t scene_identity(const SceneDesc& scene, Method method, MipStrategy strategy = {});
 
 }  // namespace tvt

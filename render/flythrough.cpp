@@ -8,6 +8,7 @@
 #include "gpu/frame_ring.h"
 #include "render/terrain_renderer.h"
 #include "render/vt_debug.h"
+#include "streaming/page_store.h"
 
 namespace tvt {
 
@@ -32,11 +33,14 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
   if (o.frames < 1) return make_error("frames: must be at least 1");
   if (!(o.fps > 0.0)) return make_error("fps: must be > 0");
   if (o.feedback_mode == FeedbackMode::None) return make_error("feedback_mode: the loop needs feedback");
-  auto packed = pack_scene(assets, options_for(o.method));
+  auto packed = pack_scene(assets, options_for(o.method, o.mip_strategy));
   if (!packed) return packed.error();
   VtSystemOptions vto = o.vt;
   vto.frames_in_flight = o.frames_in_flight;
-  if (vto.store && vto.scene_hash == 0) vto.scene_hash = scene_identity(assets.desc, o.method);
+  // A filtered store composed level 0 alone, where every mip strategy is direct.
+  if (vto.store && vto.scene_hash == 0)
+    vto.scene_hash = scene_identity(assets.desc, o.method,
+                                    vto.store->desc().pyramid == StorePyramid::filtered ? MipStrategy{} : o.mip_strategy);
   auto vt = VtSystem::create(g, packed.value(), vto);
   if (!vt) return vt.error();
   VtSystem& v = *vt.value();

@@ -23,6 +23,7 @@ namespace tvt {
 
 struct FlythroughOptions {
   Method method = Method::FbpbDpt;
+  MipStrategy mip_strategy;  // how pages of mip >= 1 are composed
   uint32_t frames = 120;
   uint32_t width = 640, height = 360;   // pixels
   double fps = 10.0;                    // camera-path frames per second

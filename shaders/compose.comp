@@ -36,7 +36,8 @@ void main() {
     imageStore(page_out, ivec3(t, int(job.slot)), unpackUnorm4x8(tvt_coord_word(mip, x, y)));
     return;
   }
-  const int64_t s = int64_t(P.supersample);
+  // Never more samples per side than the 2^mip level-0 texels the texel covers: mip 0 is direct.
+  const int64_t s = min(int64_t(P.supersample), int64_t(1) << mip);
   const int sub_shift = mip + TVT_FIXED_BITS;
   const float footprint = exp2(float(mip)) / float(s);
   vec4 sum = vec4(0.0);

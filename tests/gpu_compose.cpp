@@ -124,6 +124,9 @@ TEST_F(GpuCompose, SupersampledMipsMatchReference) {
   ComposeOptions o = options_for(Method::FbpbDpt);
   o.supersample = 4;
   expect_agreement(assets, o, {{2, 20, 30}, {5, 1, 1}}, "supersample 4");
+  // Capped at 2^mip samples a side, on both sides: supersample:64 at mips 0, 1 and 3.
+  o.supersample = 64;
+  expect_agreement(assets, o, {{0, 40, 60}, {1, 20, 30}, {3, 5, 7}}, "supersample 64 (capped)");
 }
 
 TEST_F(GpuCompose, PagesAreDeterministicAndBordersMatchNeighbours) {

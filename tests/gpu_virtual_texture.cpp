@@ -185,6 +185,15 @@ TEST(VirtualTexture, CreateRefusesADeviceWithoutARequiredFeatureAndBadDescriptio
   ASSERT_FALSE(bad_method.ok());
   EXPECT_NE(bad_method.error().message.find("method"), std::string::npos) << bad_method.error().message;
   d = small_desc();
+  d.mip_strategy = "supersample:3";
+  auto bad_strategy = terravt::VirtualTexture::create(client.h, d);
+  ASSERT_FALSE(bad_strategy.ok());
+  EXPECT_EQ(bad_strategy.error().kind, terravt::ErrorKind::invalid_argument);
+  EXPECT_NE(bad_strategy.error().message.find("VirtualTextureDesc::mip_strategy"), std::string::npos)
+      << bad_strategy.error().message;
+  d.mip_strategy = "supersample:4";  // a valid one is accepted
+  EXPECT_TRUE(terravt::VirtualTexture::create(client.h, d).ok());
+  d = small_desc();
   d.source = terravt::PageSource::stored;
   auto no_store = terravt::VirtualTexture::create(client.h, d);
   ASSERT_FALSE(no_store.ok());

@@ -47,7 +47,7 @@ TEST(ComposeCli, BadFlagsExitWithUsageErrorAndWriteNothing) {
   const std::string out = " --out " + (d / "x.png").string();
   EXPECT_EQ(run("compose --device tpu" + out), 2);
   for (const std::string args : {"compose --methods linear,nope", "compose --mip 99",
-                                  "compose --region 1,2,3", "compose --region -5,0,16,16", "compose --supersample 3",
+                                  "compose --region 1,2,3", "compose --region -5,0,16,16", "compose --mip-strategy supersample:3",
                                   "compose --size 2", "compose --scene /does/not/exist.json", "compose --panels /no/such/dir"})
     EXPECT_EQ(run(args + " --device cpu" + out), 2) << args;
   EXPECT_TRUE(fs::is_empty(d));

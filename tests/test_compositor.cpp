@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "compose/reference_compositor.h"
+#include "compose/scene_identity.h"
 #include "shaders/shared/hash.h"
 #include "support/synthetic_scene.h"
 
@@ -323,6 +324,49 @@ TEST(Extremes, AllFeatureMaskAndFullVisibility) {
   a.desc.materials[1].has_fbpb = true;
   const PackedScene s = pack(a);
   for (int64_t x : {0, 17, 63, 64, 1000}) EXPECT_NEAR(at(s, x, x * 3 % 1024).g, 250 / 255.0, 1e-9);
+}
+
+// A mip-m texel never takes more than 2^m samples a side (the level-0 texels it covers): mip 0
+// is direct under every strategy, and at mip 1 supersample:64 is supersample:2.
+TEST(Mips, SupersamplingIsCappedAtTheLevel0TexelsATexelCovers) {
+  auto a = test::make_synthetic_assets({k_base, {{0, 250, 0, 200}, 0.5f, Mode::Dpt}});
+  a.desc.materials[1].dpt.layers = {{6, 1, 1, 1, 0.5}};
+  for (size_t i = 0; i < 16; ++i) a.weights.data[16 + i] = float(i % 3) / 2.f;
+  ComposeOptions o64, o2;
+  o64.supersample = 64;
+  o2.supersample = 2;
+  const PackedScene s64 = pack(a, o64), s2 = pack(a, o2), s1 = pack(a);
+  for (int64_t y = 0; y < 6; ++y)
+    for (int64_t x = 0; x < 6; ++x) {
+      EXPECT_EQ(compose_texel_reference(s64, 0, x * 9, y * 5), compose_texel_reference(s1, 0, x * 9, y * 5));
+      EXPECT_EQ(compose_texel_reference(s64, 1, x * 9, y * 5), compose_texel_reference(s2, 1, x * 9, y * 5));
+    }
+}
+
+TEST(Mips, StrategyNamesRoundTripAndEverythingElseIsRefused) {
+  for (const char* name : {"direct", "supersample:2", "supersample:4", "supersample:64"}) {
+    auto s = mip_strategy_from_string(name);
+    ASSERT_TRUE(s.ok()) << name;
+    EXPECT_EQ(to_string(s.value()), name);
+  }
+  EXPECT_EQ(mip_strategy_from_string("direct")->supersample, 1u);
+  EXPECT_EQ(mip_strategy_from_string("supersample:8")->supersample, 8u);
+  for (const char* bad : {"", "Direct", "supersample", "supersample:", "supersample:1", "supersample:3", "supersample:128",
+                          "supersample:-2", "supersample:+4", "supersample:04x", "supersample: 4", "supersample:0",
+                          "supersample:999999999999", "prefiltered"}) {
+    auto s = mip_strategy_from_string(bad);
+    ASSERT_FALSE(s.ok()) << "'" << bad << "'";
+    EXPECT_NE(s.error().message.find("supersample:S"), std::string::npos) << s.error().message;
+  }
+}
+
+// A store baked with a non-direct strategy holds other pages at mip >= 1: its identity differs.
+// Direct adds nothing, so stores baked before the strategy existed keep their identity.
+TEST(Mips, TheStrategyIsPartOfTheSceneIdentityUnlessDirect) {
+  const SceneDesc scene = default_scene();
+  EXPECT_EQ(scene_identity(scene, Method::Dpt2), scene_identity(scene, Method::Dpt2, MipStrategy{}));
+  EXPECT_NE(scene_identity(scene, Method::Dpt2), scene_identity(scene, Method::Dpt2, MipStrategy{4}));
+  EXPECT_NE(scene_identity(scene, Method::Dpt2, MipStrategy{2}), scene_identity(scene, Method::Dpt2, MipStrategy{4}));
 }
 
 TEST(Mips, GroundTruthIsSupersamplingAtTheLevel0Rate) {

@@ -86,6 +86,24 @@ CLI::Validator finite_range(double lo, double hi) {
       "FLOAT in " + range);
 }
 
+void add_mip_strategy_option(CLI::App& app, std::string& text) {
+  app.add_option("--mip-strategy", text,
+                 "How pages of mip >= 1 are composed: direct (one sample per texel) or supersample:S (up to SxS "
+                 "samples per texel, S = 2..64, a power of two; never more than the level-0 texels covered)")
+      ->check(CLI::Validator(
+          [](std::string& value) -> std::string {
+            auto s = mip_strategy_from_string(value);
+            return s ? std::string() : s.error().message;
+          },
+          "direct|supersample:S"))
+      ->capture_default_str();
+}
+
+MipStrategy parsed_mip_strategy(const std::string& text) {
+  auto s = mip_strategy_from_string(text);
+  return s ? s.value() : MipStrategy{};  // the option's check refused anything else
+}
+
 std::optional<std::string> not_a_regular_file(const std::string& path) {
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0) return path + ": " + (errno == ENOENT || errno == ENOTDIR ? "file not found" : fileio::errno_text(errno));

@@ -9,6 +9,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "compose/packed_scene.h"
 #include "compose/scene_assets.h"
 #include "terrain/camera_file.h"
 #include "terrain/terrain_mesh.h"
@@ -47,6 +48,10 @@ Status write_text_file(const std::string& path, const std::string& text);
 // also passes FIFOs, devices and sockets, on which a reader blocks or never ends).
 CLI::Validator finite_range(double lo, double hi);
 CLI::Validator regular_file();
+// --mip-strategy (render, bake, compare, compose): direct | supersample:S (compose/packed_scene.h).
+void add_mip_strategy_option(CLI::App& app, std::string& text);
+// The strategy of a value add_mip_strategy_option() accepted.
+MipStrategy parsed_mip_strategy(const std::string& text);
 
 // Why `path` cannot be read as a regular input file ("is a directory", "is a FIFO", ...),
 // or nullopt when it can be. Follows symbolic links.

@@ -25,6 +25,7 @@ struct BakeArgs {
   std::string scene;
   std::string out;
   std::string method = "fbpb+dpt2";
+  std::string mip_strategy = "direct";
   std::string gpu_name;
   std::string shard = "0/1";
   std::string dict = "none";     // none | auto | a dictionary file
@@ -91,6 +92,9 @@ int run_bake(const BakeArgs& a) {
     return fail(cmd, "--pyramid: must be filtered or composed, got '" + a.pyramid + "'", 2);
   const StorePyramid pyramid = a.pyramid == "filtered" ? StorePyramid::filtered : StorePyramid::composed;
   if (!a.finer.empty() && pyramid != StorePyramid::filtered) return fail(cmd, "--finer: only used with --pyramid filtered", 2);
+  if (pyramid == StorePyramid::filtered && parsed_mip_strategy(a.mip_strategy).supersample > 1)
+    return fail(cmd, "--mip-strategy: only used with --pyramid composed (a filtered pyramid composes level 0 alone, "
+                     "where every strategy is direct)", 2);
   for (const std::string& f : a.finer)
     if (auto why = not_a_regular_file(f)) return fail(cmd, "--finer: " + *why, 2);
   uint32_t shard_index = 0, shard_count = 1;
@@ -135,7 +139,7 @@ int run_bake(const BakeArgs& a) {
   if (!plan) return fail(cmd, "--region/--mips: " + plan.error().message, 2);
   const ShardRange part = shard_range(plan->size(), shard_index, shard_count);
 
-  auto producers = PageProducers::create(assets.value(), *method, a.cpu, a.gpu_name);
+  auto producers = PageProducers::create(assets.value(), *method, parsed_mip_strategy(a.mip_strategy), a.cpu, a.gpu_name);
   if (!producers) return fail(cmd, producers.error().message, 1);
   StoreDesc desc = producers.value()->store_desc(a.level);
   desc.pyramid = pyramid;
@@ -162,8 +166,8 @@ int run_bake(const BakeArgs& a) {
       return fail(cmd, "--save-dict: " + w.error().message, 1);
   }
 
-  std::printf("terravt bake: %s, V = 2^%u, %s, %s pyramid, %zu pages in the plan, shard %u/%u = %llu pages, zstd %d%s, %s\n",
-              assets->desc.source_path.c_str(), vt.log2_size, a.method.c_str(), a.pyramid.c_str(), plan->size(), shard_index, shard_count,
+  std::printf("terravt bake: %s, V = 2^%u, %s, mip strategy %s, %s pyramid, %zu pages in the plan, shard %u/%u = %llu pages, zstd %d%s, %s\n",
+              assets->desc.source_path.c_str(), vt.log2_size, a.method.c_str(), a.mip_strategy.c_str(), a.pyramid.c_str(), plan->size(), shard_index, shard_count,
               (unsigned long long)part.count, a.level, desc.dictionary.empty() ? "" : " + dictionary",
               producers.value()->device_name().c_str());
 
@@ -208,6 +212,7 @@ const CommandRegistrar k_register{
       app.add_option("--out", a->out, "Store file to write (atomically: <out>.partial, then rename)")->required();
       app.add_option("--scene", a->scene, "Scene JSON file (default: the built-in scene)")->check(regular_file());
       app.add_option("--method", a->method, "Transition method")->capture_default_str();
+      add_mip_strategy_option(app, a->mip_strategy);
       app.add_option("--region", a->region, "x,y,width,height in level-0 texels (default: whole VT)")->delimiter(',');
       app.add_option("--mips", a->mips, "lo,hi: mip range (default: all)")->delimiter(',');
       app.add_option("--pyramid", a->pyramid,

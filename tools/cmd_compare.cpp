@@ -35,6 +35,7 @@ namespace {
 struct CompareArgs {
   std::string scene;
   std::string method = "fbpb+dpt2";
+  std::string mip_strategy = "direct";
   std::string out = "out/compare";
   std::string camera;  // camera path file (default: the built-in flythrough)
   std::string store;
@@ -268,6 +269,7 @@ int run_compare(const CompareArgs& a) {
 
   FlythroughOptions fo;
   fo.method = *method;
+  fo.mip_strategy = parsed_mip_strategy(a.mip_strategy);
   fo.frames = a.frames;
   fo.width = a.width;
   fo.height = a.height;
@@ -277,8 +279,8 @@ int run_compare(const CompareArgs& a) {
   fo.vt.loader.staging_slots = a.staging;
   fo.deterministic = true;  // procedural and frame-exact stored runs see the same feedback
   fo.camera = camera->file;
-  std::printf("terravt compare: %s, V = 2^%u, %s, %u frames at %ux%u, camera %s, device %s\n",
-              assets->desc.source_path.c_str(), vt.log2_size, a.method.c_str(), a.frames, a.width, a.height,
+  std::printf("terravt compare: %s, V = 2^%u, %s, mip strategy %s, %u frames at %ux%u, camera %s, device %s\n",
+              assets->desc.source_path.c_str(), vt.log2_size, a.method.c_str(), a.mip_strategy.c_str(), a.frames, a.width, a.height,
               camera->describe().c_str(), g.device_name().c_str());
 
   // 1. Procedural.
@@ -286,7 +288,7 @@ int run_compare(const CompareArgs& a) {
   if (!proc) return fail(cmd, proc.error().message, 1);
 
   // 2. The store: exactly the pages the path needed, in bake order (or --store).
-  auto producers = PageProducers::create(assets.value(), *method, false, "", &g);
+  auto producers = PageProducers::create(assets.value(), *method, fo.mip_strategy, false, "", &g);
   if (!producers) return fail(cmd, producers.error().message, 1);
   std::string store_path = a.store;
   double bake_s = 0;
@@ -362,7 +364,7 @@ int run_compare(const CompareArgs& a) {
   for (const MaterialDesc& m : assets->desc.materials)
     for (const std::string& p : {m.albedo.image_path, m.albedo.height_path, m.weight.splat_path, m.fbpb.meta_path, m.fbpb.mask_path})
       input_files += file_bytes(p);
-  auto packed = pack_scene(assets.value(), options_for(*method));
+  auto packed = pack_scene(assets.value(), options_for(*method, fo.mip_strategy));
   if (!packed) return fail(cmd, packed.error().message, 2);
   const uint64_t input_packed = (packed->texel_words + packed->meta_words) * 4 +
                                 packed->weights.size() * 4 + assets->heightfield.data.size() * 4;
@@ -378,6 +380,7 @@ int run_compare(const CompareArgs& a) {
   nlohmann::json j;
   j["scene"] = assets->desc.source_path;
   j["method"] = a.method;
+  j["mip_strategy"] = a.mip_strategy;
   j["vt"] = {{"log2_size", vt.log2_size}, {"page_texels", vt.page_texels}, {"border_texels", vt.border_texels}};
   j["frames"] = a.frames;
   j["camera"] = camera->describe();
@@ -464,6 +467,7 @@ const CommandRegistrar k_register{
       auto a = std::make_shared<CompareArgs>();
       app.add_option("--scene", a->scene, "Scene JSON file (default: the built-in scene)")->check(regular_file());
       app.add_option("--method", a->method, "Transition method")->capture_default_str();
+      add_mip_strategy_option(app, a->mip_strategy);
       app.add_option("--out", a->out, "Folder for the store, compare.json and disk_vs_v.svg")->capture_default_str();
       app.add_option("--store", a->store, "Use this store instead of baking the pages the path needs")->check(regular_file());
       app.add_option("--camera", a->camera, "Camera path file (docs/renderer.md; default: the built-in flythrough)");

@@ -28,7 +28,7 @@ struct ComposeArgs {
   std::vector<int64_t> region;  // x, y, w, h at the chosen mip
   int size = 512;
   uint32_t mip = 0;
-  uint32_t supersample = 1;
+  std::string mip_strategy = "direct";
   int columns = 3;
 };
 
@@ -75,9 +75,9 @@ int run_compose(const ComposeArgs& a) {
                   2);
   }
   const std::vector<PageId> pages = pages_covering(vt, region);
-  std::printf("scene %s, V = 2^%u, mip %u, region (%lld, %lld) %dx%d, %zu pages per method, %s, supersample %u\n",
+  std::printf("scene %s, V = 2^%u, mip %u, region (%lld, %lld) %dx%d, %zu pages per method, %s, mip strategy %s\n",
               assets->desc.source_path.c_str(), vt.log2_size, a.mip, (long long)region.x, (long long)region.y,
-              region.width, region.height, pages.size(), a.device.c_str(), a.supersample);
+              region.width, region.height, pages.size(), a.device.c_str(), a.mip_strategy.c_str());
   for (size_t n = 0; n < assets->materials->size(); ++n)
     if (const std::string& note = assets->materials->info(n).image_note; !note.empty())
       std::printf("  material %zu %s: %s\n", n, assets->desc.materials[n].name.c_str(), note.c_str());
@@ -94,8 +94,7 @@ int run_compose(const ComposeArgs& a) {
     return fail(cmd, message, code);
   };
   for (Method method : methods) {
-    ComposeOptions options = options_for(method);
-    options.supersample = a.supersample;
+    const ComposeOptions options = options_for(method, parsed_mip_strategy(a.mip_strategy));
     auto packed = pack_scene(assets.value(), options);
     if (!packed) return failed(packed.error().message, 2);
     const auto tm = std::chrono::steady_clock::now();
@@ -164,7 +163,7 @@ const CommandRegistrar k_register{
       app.add_option("--mip", a->mip, "Mip level to compose")->capture_default_str();
       app.add_option("--region", a->region, "x,y,width,height in texels of the mip (default: auto)")->delimiter(',');
       app.add_option("--size", a->size, "Edge of the automatic region in texels")->check(CLI::Range(16, 4096))->capture_default_str();
-      app.add_option("--supersample", a->supersample, "s: s*s samples per texel (power of two 1..64)")->capture_default_str();
+      add_mip_strategy_option(app, a->mip_strategy);
       app.add_option("--columns", a->columns, "Panels per row")->check(CLI::Range(1, 16))->capture_default_str();
       return [a] { return run_compose(*a); };
     }};

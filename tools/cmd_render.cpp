@@ -32,6 +32,7 @@ struct RenderArgs {
   std::string save_camera;  // write the camera path in use here and stop
   std::string out = "out/render";
   std::string method = "fbpb+dpt2";
+  std::string mip_strategy = "direct";
   std::string gpu_name;
   std::string format = "png";
   std::string source = "procedural";
@@ -218,7 +219,10 @@ int run_render(const RenderArgs& a) {
   if (!assets) return fail(cmd, assets.error().message, 2);
   // A store of another scene, method or VT geometry is as unusable as one that cannot be opened.
   if (store) {
-    if (auto s = StoredProducer::matches(*store, assets->desc.vt, scene_identity(assets->desc, *method)); !s) {
+    // A filtered store composed level 0 alone, where every mip strategy is direct.
+    const MipStrategy baked_with = store->desc().pyramid == StorePyramid::filtered ? MipStrategy{}
+                                                                                   : parsed_mip_strategy(a.mip_strategy);
+    if (auto s = StoredProducer::matches(*store, assets->desc.vt, scene_identity(assets->desc, *method, baked_with)); !s) {
       if (vt_source != VtSource::hybrid || a.strict) return fail(cmd, "--store: " + s.error().message, 2);
       std::fprintf(stderr, "terravt render: --store: %s; composing every page instead (hybrid; --strict makes this an "
                            "error)\n",
@@ -277,6 +281,7 @@ int run_render(const RenderArgs& a) {
 
   FlythroughOptions fo;
   fo.method = *method;
+  fo.mip_strategy = parsed_mip_strategy(a.mip_strategy);
   fo.frames = frames;
   fo.camera = camera->file;
   fo.width = a.width;
@@ -303,9 +308,10 @@ int run_render(const RenderArgs& a) {
     fo.lighting.detail_relief_m = 0.0;
   }
   fo.debug_view = a.debug_mips ? 1 : 0;
-  std::printf("terravt render: %s, V = 2^%u, %ux%u, %u frames, method %s, source %s, cache %u pages, budget %u/frame, "
-              "%s filter, device %s\n",
+  std::printf("terravt render: %s, V = 2^%u, %ux%u, %u frames, method %s, mip strategy %s, source %s, cache %u pages, "
+              "budget %u/frame, %s filter, device %s\n",
               assets->desc.source_path.c_str(), assets->desc.vt.log2_size, a.width, a.height, frames, a.method.c_str(),
+              a.mip_strategy.c_str(),
               (vt_source == *source ? a.source : a.source + " without its store").c_str(), a.cache_slots, a.page_budget, mip_filter_name(*mip_filter).c_str(), g.device_name().c_str());
   std::printf("camera: %s\n", camera->describe().c_str());
   uint32_t written = 0;
@@ -440,6 +446,7 @@ const CommandRegistrar k_register{
       app.add_option("--height", a->height, "Image height")->capture_default_str();
       app.add_option("--fps", a->fps, "Camera path frames per second")->capture_default_str();
       app.add_option("--method", a->method, "Transition method")->capture_default_str();
+      add_mip_strategy_option(app, a->mip_strategy);
       app.add_option("--cache-slots", a->cache_slots, "Physical cache size in pages")->capture_default_str();
       app.add_option("--page-budget", a->page_budget, "Pages composed per frame at most")->capture_default_str();
       app.add_option("--feedback-divisor", a->feedback_divisor, "N: one feedback texel per N x N pixels")->capture_default_str();

@@ -11,13 +11,15 @@
 
 namespace tvt::cli {
 
-Result<std::unique_ptr<PageProducers>> PageProducers::create(const SceneAssets& assets, Method method, bool cpu,
-                                                             const std::string& gpu_name, vk::Context* context) {
+Result<std::unique_ptr<PageProducers>> PageProducers::create(const SceneAssets& assets, Method method,
+                                                             MipStrategy strategy, bool cpu, const std::string& gpu_name,
+                                                             vk::Context* context) {
   std::unique_ptr<PageProducers> p(new PageProducers());
   p->assets_ = &assets;
   p->method_ = method;
+  p->strategy_ = strategy;
   p->cpu_ = cpu;
-  auto packed = pack_scene(assets, options_for(method));
+  auto packed = pack_scene(assets, options_for(method, strategy));
   if (!packed) return packed.error();
   p->packed_ = std::move(packed.value());
   if (cpu) {
@@ -40,10 +42,11 @@ Result<std::unique_ptr<PageProducers>> PageProducers::create(const SceneAssets& 
 StoreDesc PageProducers::store_desc(int level) const {
   StoreDesc d;
   d.vt = assets_->desc.vt;
-  d.scene_hash = scene_identity(assets_->desc, method_);
+  d.scene_hash = scene_identity(assets_->desc, method_, strategy_);
   // The device is part of the producer: fp32 results may differ between GPUs, so parts baked on
   // different devices must not be merged into one store.
-  d.producer = (cpu_ ? std::string("cpu") : std::string("gpu")) + " " + std::string(to_string(method_)) + " " + device_name_;
+  d.producer = (cpu_ ? std::string("cpu") : std::string("gpu")) + " " + std::string(to_string(method_)) + " " +
+               (strategy_.supersample > 1 ? to_string(strategy_) + " " : std::string()) + device_name_;
   if (d.producer.size() > 63) d.producer.resize(63);
   d.zstd_level = level;
   return d;

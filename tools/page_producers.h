@@ -18,8 +18,9 @@ class PageProducers {
  public:
   // cpu: the CPU reference on every core; else the GPU composer on `context` if given, or on
   // a new context for `gpu_name`'s device.
-  static Result<std::unique_ptr<PageProducers>> create(const SceneAssets& assets, Method method, bool cpu,
-                                                       const std::string& gpu_name, vk::Context* context = nullptr);
+  static Result<std::unique_ptr<PageProducers>> create(const SceneAssets& assets, Method method, MipStrategy strategy,
+                                                       bool cpu, const std::string& gpu_name,
+                                                       vk::Context* context = nullptr);
   GpuComposer* composer() { return composer_.get(); }
   // A store header for pages made by this producer at zstd `level`.
   StoreDesc store_desc(int level) const;
@@ -32,6 +33,7 @@ class PageProducers {
   PageProducers() = default;
   const SceneAssets* assets_ = nullptr;
   Method method_ = Method::FbpbDpt;
+  MipStrategy strategy_;
   PackedScene packed_;
   bool cpu_ = false;
   std::string device_name_;
