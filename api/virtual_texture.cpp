@@ -153,10 +153,7 @@ Result<std::unique_ptr<VirtualTexture>> VirtualTexture::create(const DeviceHandl
     auto store = tvt::PageStoreReader::open(desc.store_file);
     if (!store) return Error{ErrorKind::io, store.error().message};
     o.store = std::move(store.value());
-    // A filtered store composed level 0 alone, where every mip strategy is direct.
-    o.scene_hash = tvt::scene_identity(
-        impl->assets.desc, *method,
-        o.store->desc().pyramid == tvt::StorePyramid::filtered ? tvt::MipStrategy{} : strategy.value());
+    o.scene_hash = tvt::store_scene_identity(impl->assets.desc, *method, strategy.value(), o.store->desc().pyramid);
   }
   auto vt = tvt::VtSystem::create(*impl->context, packed.value(), o);
   if (!vt) return as_input_error(vt.error());

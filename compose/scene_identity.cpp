@@ -49,4 +49,8 @@ uint64_t scene_identity(const SceneDesc& scene, Method method, MipStrategy strat
   return h == 0 ? 1 : h;  // 0 means "unknown" in a store header
 }
 
+uint64_t store_scene_identity(const SceneDesc& scene, Method method, MipStrategy strategy, StorePyramid pyramid) {
+  return scene_identity(scene, method, pyramid == StorePyramid::filtered ? MipStrategy{} : strategy);
+}
+
 }  // namespace tvt

@@ -8,11 +8,15 @@
 
 #include "compose/packed_scene.h"
 #include "compose/scene.h"
+#include "streaming/page_store.h"
 
 namespace tvt {
 
 // The mip strategy changes pages of mip >= 1: a store baked with one is not another's. Direct
 // adds nothing, so identities of stores baked before the knob existed still match.
 uint64_t scene_identity(const SceneDesc& scene, Method method, MipStrategy strategy = {});
+// The identity a store of `pyramid` must carry to serve a run of `method` and `strategy`: a
+// filtered store composed level 0 alone, where every strategy is direct.
+uint64_t store_scene_identity(const SceneDesc& scene, Method method, MipStrategy strategy, StorePyramid pyramid);
 
 }  // namespace tvt

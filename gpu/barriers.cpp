@@ -8,7 +8,7 @@ void Context::transition(VkCommandBuffer cmd, const Image& image, VkImageLayout 
   TVT_CHECK(image.handle() != VK_NULL_HANDLE);
   const VkImageSubresourceRange range{aspect_of(image.format()), 0, VK_REMAINING_MIP_LEVELS, 0,
                                       VK_REMAINING_ARRAY_LAYERS};
-  if (image.synchronization2_) {
+  if (features_.synchronization2) {
     auto b = init<VkImageMemoryBarrier2>(VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER_2);
     b.srcStageMask = VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT;
     b.srcAccessMask = VK_ACCESS_2_MEMORY_WRITE_BIT;

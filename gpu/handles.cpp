@@ -55,7 +55,6 @@ Image& Image::operator=(Image&& o) noexcept {
     height_ = std::exchange(o.height_, 0);
     layers_ = std::exchange(o.layers_, 0);
     mip_levels_ = std::exchange(o.mip_levels_, 0);
-    synchronization2_ = std::exchange(o.synchronization2_, false);
   }
   return *this;
 }
@@ -76,7 +75,6 @@ void Image::reset() {
   memory_ = VK_NULL_HANDLE;
   format_ = VK_FORMAT_UNDEFINED;
   width_ = height_ = layers_ = mip_levels_ = 0;
-  synchronization2_ = false;
 }
 
 PipelineHandles::PipelineHandles(PipelineHandles&& o) noexcept { *this = std::move(o); }

@@ -128,7 +128,6 @@ Image Context::create_image(VkFormat format, uint32_t width, uint32_t height, ui
   img.height_ = height;
   img.layers_ = layers;
   img.mip_levels_ = mip_levels;
-  img.synchronization2_ = features_.synchronization2;
   const VkImageCreateInfo ici = image_create_info(format, width, height, layers, usage, mip_levels);
   if (!TVT_VK_OK(*this, fn_.vkCreateImage(device_, &ici, alloc_, &img.image_))) return {};
 

@@ -71,7 +71,6 @@ class Image {
   VkDeviceMemory memory_ = VK_NULL_HANDLE;
   VkFormat format_ = VK_FORMAT_UNDEFINED;
   uint32_t width_ = 0, height_ = 0, layers_ = 0, mip_levels_ = 0;
-  bool synchronization2_ = false;  // the device has synchronization2 on (transition() uses it)
   void reset();
 };
 

@@ -8,7 +8,6 @@
 #include "gpu/frame_ring.h"
 #include "render/terrain_renderer.h"
 #include "render/vt_debug.h"
-#include "streaming/page_store.h"
 
 namespace tvt {
 
@@ -37,10 +36,8 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
   if (!packed) return packed.error();
   VtSystemOptions vto = o.vt;
   vto.frames_in_flight = o.frames_in_flight;
-  // A filtered store composed level 0 alone, where every mip strategy is direct.
   if (vto.store && vto.scene_hash == 0)
-    vto.scene_hash = scene_identity(assets.desc, o.method,
-                                    vto.store->desc().pyramid == StorePyramid::filtered ? MipStrategy{} : o.mip_strategy);
+    vto.scene_hash = store_scene_identity(assets.desc, o.method, o.mip_strategy, vto.store->desc().pyramid);
   auto vt = VtSystem::create(g, packed.value(), vto);
   if (!vt) return vt.error();
   VtSystem& v = *vt.value();

@@ -245,50 +245,35 @@ TEST(AdoptDevice, AnAdoptedContextAllocatesThroughTheClientsCallbacksAndLeavesTh
 // must call Vulkan only through what this returns (its private table), never the loader's
 // exports.
 struct ClientDispatch {
-  static inline PFN_vkGetDeviceProcAddr real_gdpa = nullptr;
-  static inline PFN_vkCreateBuffer real_create_buffer = nullptr;
-  static inline PFN_vkCmdDispatch real_dispatch = nullptr;
-  static inline PFN_vkQueueSubmit real_submit = nullptr;
   static inline int buffers = 0, dispatches = 0, submits = 0;
   static inline std::string withheld;
 
+  // Each wrapper counts, then calls the loader's own export (the test links the loader).
   static VKAPI_ATTR VkResult VKAPI_CALL create_buffer(VkDevice d, const VkBufferCreateInfo* i,
                                                       const VkAllocationCallbacks* a, VkBuffer* b) {
     ++buffers;
-    return real_create_buffer(d, i, a, b);
+    return vkCreateBuffer(d, i, a, b);
   }
   static VKAPI_ATTR void VKAPI_CALL dispatch(VkCommandBuffer c, uint32_t x, uint32_t y, uint32_t z) {
     ++dispatches;
-    real_dispatch(c, x, y, z);
+    vkCmdDispatch(c, x, y, z);
   }
   static VKAPI_ATTR VkResult VKAPI_CALL submit(VkQueue q, uint32_t n, const VkSubmitInfo* s, VkFence f) {
     ++submits;
-    return real_submit(q, n, s, f);
+    return vkQueueSubmit(q, n, s, f);
   }
   static VKAPI_ATTR PFN_vkVoidFunction VKAPI_CALL gdpa(VkDevice device, const char* name) {
     const std::string n = name;
     if (n == withheld) return nullptr;
-    if (n == "vkCreateBuffer") {
-      real_create_buffer = reinterpret_cast<PFN_vkCreateBuffer>(real_gdpa(device, name));
-      return reinterpret_cast<PFN_vkVoidFunction>(&create_buffer);
-    }
-    if (n == "vkCmdDispatch") {
-      real_dispatch = reinterpret_cast<PFN_vkCmdDispatch>(real_gdpa(device, name));
-      return reinterpret_cast<PFN_vkVoidFunction>(&dispatch);
-    }
-    if (n == "vkQueueSubmit") {
-      real_submit = reinterpret_cast<PFN_vkQueueSubmit>(real_gdpa(device, name));
-      return reinterpret_cast<PFN_vkVoidFunction>(&submit);
-    }
-    return real_gdpa(device, name);
+    if (n == "vkCreateBuffer") return reinterpret_cast<PFN_vkVoidFunction>(&create_buffer);
+    if (n == "vkCmdDispatch") return reinterpret_cast<PFN_vkVoidFunction>(&dispatch);
+    if (n == "vkQueueSubmit") return reinterpret_cast<PFN_vkVoidFunction>(&submit);
+    return vkGetDeviceProcAddr(device, name);
   }
   static VKAPI_ATTR PFN_vkVoidFunction VKAPI_CALL gipa(VkInstance instance, const char* name) {
     const std::string n = name;
     if (n == withheld) return nullptr;
-    if (n == "vkGetDeviceProcAddr") {
-      real_gdpa = reinterpret_cast<PFN_vkGetDeviceProcAddr>(vkGetInstanceProcAddr(instance, name));
-      return reinterpret_cast<PFN_vkVoidFunction>(&gdpa);
-    }
+    if (n == "vkGetDeviceProcAddr") return reinterpret_cast<PFN_vkVoidFunction>(&gdpa);
     return vkGetInstanceProcAddr(instance, name);
   }
 };

@@ -219,10 +219,9 @@ int run_render(const RenderArgs& a) {
   if (!assets) return fail(cmd, assets.error().message, 2);
   // A store of another scene, method or VT geometry is as unusable as one that cannot be opened.
   if (store) {
-    // A filtered store composed level 0 alone, where every mip strategy is direct.
-    const MipStrategy baked_with = store->desc().pyramid == StorePyramid::filtered ? MipStrategy{}
-                                                                                   : parsed_mip_strategy(a.mip_strategy);
-    if (auto s = StoredProducer::matches(*store, assets->desc.vt, scene_identity(assets->desc, *method, baked_with)); !s) {
+    const uint64_t wanted =
+        store_scene_identity(assets->desc, *method, parsed_mip_strategy(a.mip_strategy), store->desc().pyramid);
+    if (auto s = StoredProducer::matches(*store, assets->desc.vt, wanted); !s) {
       if (vt_source != VtSource::hybrid || a.strict) return fail(cmd, "--store: " + s.error().message, 2);
       std::fprintf(stderr, "terravt render: --store: %s; composing every page instead (hybrid; --strict makes this an "
                            "error)\n",
