@@ -157,6 +157,10 @@ class Context {
   // While set-up is deferred (below), `record` is kept and recorded later instead: it must then
   // capture nothing by reference that dies before record_deferred_setup().
   void run_commands(const std::function<void(VkCommandBuffer)>& record);
+  // run_commands() for benchmarks: returns the seconds the device spent between the start and
+  // the end of `record`'s commands, from two timestamps when the queue family counts them, else
+  // the wall clock of submit + wait. Never deferred; a failed call is in status().
+  double run_commands_timed(const std::function<void(VkCommandBuffer)>& record);
 
   // Set-up in the client's command buffer (a client never has terravt submit on its queue):
   // from defer_setup() on, run_commands() and upload() submit nothing; upload() copies its
