@@ -34,6 +34,10 @@ std::optional<FeedbackMode> feedback_mode_from_string(std::string_view name) {
   return std::nullopt;
 }
 
+FeedbackMode default_feedback_mode(VkPhysicalDeviceType type) {
+  return type == VK_PHYSICAL_DEVICE_TYPE_CPU ? FeedbackMode::Attachment : FeedbackMode::MainPass;
+}
+
 const char* feedback_mode_name(FeedbackMode mode) {
   switch (mode) {
     case FeedbackMode::None: return "none";

@@ -304,6 +304,10 @@ TEST_F(TerrainSamplingTest, AttachmentFeedbackEqualsMainPassStoresTexelForTexel)
   o.width = 251;  // 32 blocks of 8, the last one 3 pixels wide
   o.height = 139;
   ASSERT_EQ(TerrainVtInputs{}.feedback, FeedbackMode::Attachment);
+  // The CLI's --feedback auto: the attachment on a CPU device, main-pass stores on a GPU.
+  EXPECT_EQ(default_feedback_mode(VK_PHYSICAL_DEVICE_TYPE_CPU), FeedbackMode::Attachment);
+  EXPECT_EQ(default_feedback_mode(VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU), FeedbackMode::MainPass);
+  EXPECT_EQ(default_feedback_mode(VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU), FeedbackMode::MainPass);
   o.vt = vt_inputs(v, 8, FeedbackMode::Attachment);
   auto attachment = TerrainRenderer::create(ctx(), assets, o);
   ASSERT_TRUE(attachment.ok()) << attachment.error().message;

@@ -40,7 +40,7 @@ struct RenderArgs {
   uint32_t loader_threads = 2;
   uint32_t staging = 64;
   bool sync_loads = false;
-  std::string feedback = "attachment";
+  std::string feedback = "auto";
   uint32_t anisotropy = 1;
   std::string vt_filter = "trilinear";
   uint32_t frames_in_flight = 2;
@@ -193,9 +193,9 @@ int run_render(const RenderArgs& a) {
   if (a.strict && *source != VtSource::hybrid) return fail(cmd, "--strict: only used with --source hybrid", 2);
   if (a.loader_threads < 1 || a.loader_threads > 64) return fail(cmd, "--loader-threads: must be between 1 and 64", 2);
   if (a.staging < 1 || a.staging > 4096) return fail(cmd, "--staging: must be between 1 and 4096", 2);
-  const auto feedback = feedback_mode_from_string(a.feedback);
-  if (!feedback || *feedback == FeedbackMode::None)
-    return fail(cmd, "--feedback: attachment, main or separate, got '" + a.feedback + "'", 2);
+  const auto feedback = a.feedback == "auto" ? std::optional<FeedbackMode>(FeedbackMode::None) : feedback_mode_from_string(a.feedback);
+  if (!feedback || (*feedback == FeedbackMode::None && a.feedback != "auto"))
+    return fail(cmd, "--feedback: auto, attachment, main or separate, got '" + a.feedback + "'", 2);
   const auto mip_filter = mip_filter_from_string(a.vt_filter);
   if (!mip_filter) return fail(cmd, "--vt-filter: trilinear, bilinear, brilinear or brilinear:W with W in [0, 1], got '" + a.vt_filter + "'", 2);
   std::shared_ptr<const PageStoreReader> store;
@@ -295,7 +295,7 @@ int run_render(const RenderArgs& a) {
   fo.vt.loader.threads = a.loader_threads;
   fo.vt.loader.staging_slots = a.staging;
   fo.vt.sync_loads = a.sync_loads;
-  fo.feedback_mode = *feedback;
+  fo.feedback_mode = *feedback != FeedbackMode::None ? *feedback : default_feedback_mode(ctx.value()->properties().deviceType);
   fo.max_anisotropy = a.anisotropy;
   fo.mip_filter = *mip_filter;
   fo.frames_in_flight = a.frames_in_flight;
@@ -457,7 +457,8 @@ const CommandRegistrar k_register{
       app.add_option("--staging", a->staging, "Stored pages staged at once (loads outstanding at most)")->capture_default_str();
       app.add_option("--feedback", a->feedback,
                      "Who writes feedback (one rotating pixel per N x N): attachment (the main pass, on a second colour "
-                     "attachment), main (the main pass, storage-buffer stores) or separate (a 1/N pass)")
+                     "attachment), main (the main pass, storage-buffer stores), separate (a 1/N pass) or auto (attachment "
+                     "on a CPU device, main on a GPU: the cheaper of the two on each, as measured by bench frame)")
           ->capture_default_str();
       app.add_option("--anisotropy", a->anisotropy, "VT taps per mip along the footprint (1: isotropic; at most the page border)")->capture_default_str();
       app.add_option("--vt-filter", a->vt_filter,
