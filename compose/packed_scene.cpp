@@ -241,6 +241,18 @@ Result<PackedScene> pack_scene(const SceneAssets& assets, const ComposeOptions& 
     g.dpt_fade_hi = float(md.dpt.fade_hi_texels);
     g.fbpb_fade_lo = float(md.fbpb.fade_lod_lo);
     g.fbpb_fade_hi = float(md.fbpb.fade_lod_hi);
+    // Hex-tiling: off for FBPB modes above the base, whose features are found at unshifted
+    // texels. The edge is even so that half an edge (the odd rows' shift) is whole texels.
+    const bool fbpb_layer = n > 0 && (mode == Mode::Fbpb || mode == Mode::FbpbDpt);
+    if (options.hex.value_or(md.hex.enabled) && !fbpb_layer) {
+      const double edge = md.hex.edge > 0 ? md.hex.edge : 0.5 * g.resolution;
+      g.hex_edge = std::max(2, 2 * int(std::lround(std::clamp(edge, 2.0, 65536.0) / 2.0)));
+      g.hex_row = std::max(1, int(std::lround(g.hex_edge * std::sqrt(3.0) / 2.0)));
+      g.hex_salt = gpu::tvt_salt(d.seed, uint32_t(n), 0u, 4u);
+      g.hex_sharpness = float(std::clamp(md.hex.sharpness, 1.0, 64.0));
+      g.hex_preserve = float(std::clamp(md.hex.preserve, 0.0, 1.0));
+      g.hex_cut = 1.0f / 64.0f;
+    }
     for (size_t k = 0; k < layers; ++k) {
       const DptLayerDesc& l = md.dpt.layers[k];
       gpu::TvtDptLayer& gl = g.dpt[k];

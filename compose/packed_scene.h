@@ -22,6 +22,9 @@ struct ComposeOptions {
   // s: up to s*s sub-samples per texel, power of two 1 ... 64; a texel of mip m takes
   // min(s, 2^m)^2, never more samples than the level-0 texels it covers (mip 0 is direct).
   uint32_t supersample = 1;
+  // Hex-tiling: unset follows each material's "hex"; true turns it on for every material it
+  // applies to (with the scene's parameters where given, else the defaults); false turns it off.
+  std::optional<bool> hex;
 };
 
 // How pages of mip m >= 1 are composed, the user's accuracy/speed knob ("mip strategy"):

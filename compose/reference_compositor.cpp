@@ -99,12 +99,8 @@ struct Ctx {
     return std::log2(footprint * m.resolution * 256.0 / double(m.period_fp));
   }
 
-  // Trilinear, wrapping material sample at a terrain position.
-  glm::dvec4 sample_material(const gpu::TvtMaterial& m, int64_t x_fp, int64_t y_fp, double lod) const {
-    double u, v;
-    int64_t gx, gy;
-    material_coord(m, x_fp, u, gx);
-    material_coord(m, y_fp, v, gy);
+  // Trilinear, wrapping material sample at tile-local coordinates (u, v) in [0, R).
+  glm::dvec4 trilinear(const gpu::TvtMaterial& m, double u, double v, double lod) const {
     const double l = std::clamp(lod, 0.0, double(m.mip_count - 1));
     const int l0 = int(std::floor(l));
     const int l1 = std::min(l0 + 1, m.mip_count - 1);
@@ -112,6 +108,65 @@ struct Ctx {
     const glm::dvec4 a = bilinear(m, l0, u, v);
     if (t <= 0.0 || l1 == l0) return a;
     return a * (1 - t) + bilinear(m, l1, u, v) * t;
+  }
+
+  // Material sample at a terrain position: the tiled texture, or hex-tiling where it is on.
+  glm::dvec4 sample_material(const gpu::TvtMaterial& m, int64_t x_fp, int64_t y_fp, double lod) const {
+    double u, v;
+    int64_t gx, gy;
+    material_coord(m, x_fp, u, gx);
+    material_coord(m, y_fp, v, gy);
+    if (m.hex_edge <= 0) return trilinear(m, u, v, lod);
+    const double fx = u - double(tvt_floor_mod(gx, m.resolution)), fy = v - double(tvt_floor_mod(gy, m.resolution));
+    return hex_sample(m, gx, fx, gy, fy, lod);
+  }
+
+  // Hex-tiling at global material texel (gx + fx, gy + fy): the triangle of a lattice with edge
+  // L and row height H holding the point, each corner a tile of the texture shifted by its own
+  // hashed whole-texel offset, blended by barycentric weights raised to gamma (normalised, the
+  // ones below `cut` dropped) about the material's mean (its top mip) so that the blend keeps
+  // one tile's variance (docs/composition.md).
+  glm::dvec4 hex_sample(const gpu::TvtMaterial& m, int64_t gx, double fx, int64_t gy, double fy, double lod) const {
+    const int64_t L = m.hex_edge, H = m.hex_row, R = m.resolution;
+    const int64_t j = tvt_floor_div(gy, H);
+    const double b = (double(gy - j * H) + fy) / double(H);
+    const int64_t xs = gx - j * (L / 2);  // odd rows are shifted by half an edge per row
+    int64_t i = tvt_floor_div(xs, L);
+    double a = (double(xs - i * L) + fx) / double(L) - 0.5 * b;
+    if (a < 0.0) {
+      i -= 1;
+      a += 1.0;
+    }
+    int64_t vx[3], vy[3];
+    double w[3];
+    if (a + b < 1.0) {
+      vx[0] = i, vy[0] = j, w[0] = 1.0 - a - b;
+      vx[1] = i + 1, vy[1] = j, w[1] = a;
+      vx[2] = i, vy[2] = j + 1, w[2] = b;
+    } else {
+      vx[0] = i + 1, vy[0] = j + 1, w[0] = a + b - 1.0;
+      vx[1] = i + 1, vy[1] = j, w[1] = 1.0 - b;
+      vx[2] = i, vy[2] = j + 1, w[2] = 1.0 - a;
+    }
+    double sum = 0.0;
+    for (double& x : w) sum += (x = safe_pow(std::max(x, 0.0), m.hex_sharpness));
+    double kept = 0.0;
+    for (double& x : w) kept += (x = std::max(x / sum - double(m.hex_cut), 0.0));
+    glm::dvec4 linear(0.0);
+    double squares = 0.0;
+    for (int k = 0; k < 3; ++k) {
+      const double wk = w[k] / kept;
+      if (wk <= 0.0) continue;
+      squares += wk * wk;
+      const uint32_t h = gpu::tvt_hash_coord(vx[k], vy[k], m.hex_salt);
+      const double u = double(tvt_floor_mod(gx + int64_t(h & 0xffffu), R)) + fx;
+      const double v = double(tvt_floor_mod(gy + int64_t(h >> 16), R)) + fy;
+      linear += wk * trilinear(m, u, v, lod);
+    }
+    const glm::dvec4 mean = texel(m, m.mip_count - 1, 0, 0);
+    const glm::dvec4 preserved = mean + (linear - mean) / std::sqrt(squares);
+    const glm::dvec4 r = linear + (preserved - linear) * double(m.hex_preserve);
+    return glm::dvec4(clamp01(r.x), clamp01(r.y), clamp01(r.z), clamp01(r.w));
   }
 
   // DPT (eq. 4.1–4.4, Algorithms 2–3): blend weight b and patch height h for material m.

@@ -92,6 +92,17 @@ struct DptDesc {
   double fade_hi_texels = 8.0;       // texels than fade_lo at the composed mip is gone, above fade_hi fully present
 };
 
+// Hex-tiling, the anti-repetition mode (docs/composition.md): the material is sampled by three
+// tiles of a triangle lattice, each shifted by its own random whole-texel offset, blended by
+// sharpened barycentric weights about the material's mean so the contrast of one tile is kept.
+// Not used by FBPB modes above the base (their features are tied to the unshifted texture).
+struct HexDesc {
+  bool enabled = false;
+  double edge = 0.0;       // lattice edge in material texels, rounded to even; 0: half the resolution
+  double sharpness = 7.0;  // gamma: barycentric weights raised to this power, [1, 64]
+  double preserve = 1.0;   // 0: linear blend of the tiles; 1: variance-preserving about the mean
+};
+
 struct MaterialDesc {
   std::string name;
   TextureDesc albedo;
@@ -103,6 +114,7 @@ struct MaterialDesc {
   FbpbDesc fbpb;
   DptDesc dpt;
   double blend_sharpness = 0.1;  // s of BlendMap, (0, 0.5]
+  HexDesc hex;
 };
 
 struct SceneDesc {

@@ -229,8 +229,24 @@ class Parser : public json_check::Reader {
     return d;
   }
 
+  // "hex": true | false | {"edge": L, "sharpness": gamma, "preserve": 0 ... 1}
+  HexDesc hex(const json& v, const Ptr& at) const {
+    HexDesc h;
+    if (v.is_boolean()) {
+      h.enabled = v.get<bool>();
+      return h;
+    }
+    if (!v.is_object()) fail(at, "must be true, false or an object with edge, sharpness, preserve", v);
+    object(v, at, {"edge", "sharpness", "preserve"});
+    h.enabled = true;
+    if (const json* f = field(v, "edge")) h.edge = real(*f, at / "edge", closed(2, 65536));
+    if (const json* f = field(v, "sharpness")) h.sharpness = real(*f, at / "sharpness", closed(1, 64));
+    if (const json* f = field(v, "preserve")) h.preserve = real(*f, at / "preserve", closed(0, 1));
+    return h;
+  }
+
   MaterialDesc material(const json& v, const Ptr& at, size_t index) const {
-    object(v, at, {"name", "albedo", "normal", "period_texels", "mode", "blend_sharpness", "weight", "fbpb", "dpt"});
+    object(v, at, {"name", "albedo", "normal", "period_texels", "mode", "blend_sharpness", "weight", "fbpb", "dpt", "hex"});
     MaterialDesc m;
     m.name = text(require(v, at, "name"), at / "name");
     m.albedo = texture(require(v, at, "albedo"), at / "albedo");
@@ -259,6 +275,7 @@ class Parser : public json_check::Reader {
     if (m.mode == Mode::Fbpb || m.mode == Mode::FbpbDpt) m.has_fbpb = true;
     const json* dpt_block = field(v, "dpt");
     if (dpt_block) m.dpt = dpt(*dpt_block, at / "dpt");
+    if (const json* f = field(v, "hex")) m.hex = hex(*f, at / "hex");
     if ((m.mode == Mode::Dpt || m.mode == Mode::FbpbDpt) && m.dpt.layers.empty()) {
       const json* layers = dpt_block ? field(*dpt_block, "layers") : nullptr;
       fail(at / "dpt" / "layers", "mode \"" + std::string(to_string(m.mode)) + "\" needs at least one DPT layer",
@@ -400,6 +417,13 @@ std::string scene_to_json(const SceneDesc& s) {
       }
       j["dpt"]["layers"] = layers;
       j["dpt"]["fade_texels"] = pair(m.dpt.fade_lo_texels, m.dpt.fade_hi_texels);
+    }
+    if (m.hex.enabled) {  // written only when on: scenes without it keep their identity
+      ojson hex;
+      if (m.hex.edge > 0) hex["edge"] = m.hex.edge;
+      hex["sharpness"] = m.hex.sharpness;
+      hex["preserve"] = m.hex.preserve;
+      j["hex"] = hex;
     }
     materials.push_back(j);
   }

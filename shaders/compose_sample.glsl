@@ -54,20 +54,19 @@ vec4 material_bilinear(int n, int level, float u, float v) {
              mix(material_texel(n, level, i, j + 1), material_texel(n, level, i + 1, j + 1), fx), fy);
 }
 
-// Tile-local material coordinate (float, [0,R)) and global material texel index (exact).
-void material_coord(int n, int64_t pos_fp, out float local_, out int64_t global_) {
+// Global material texel index (exact) and the position's fraction of that texel.
+void material_texel_coord(int n, int64_t pos_fp, out int64_t global_, out float frac_) {
   const int64_t period = P.materials[n].period_fp;
   const int64_t num = pos_fp * int64_t(P.materials[n].resolution);
   global_ = tvt_floor_div(num, period);
-  const int64_t rem = num - global_ * period;
-  local_ = float(global_ & int64_t(P.materials[n].resolution - 1)) + float(rem) / float(period);
+  frac_ = float(num - global_ * period) / float(period);
 }
 
 float material_lod(int n, float footprint) {
   return log2(footprint * float(P.materials[n].resolution) * 256.0 / float(P.materials[n].period_fp));
 }
 
-// Trilinear, wrapping material sample at tile-local coordinates (u, v) from material_coord().
+// Trilinear, wrapping material sample at tile-local coordinates (u, v) in [0, R).
 vec4 sample_material(int n, float u, float v, float lod) {
   const float l = clamp(lod, 0.0, float(P.materials[n].mip_count - 1));
   const int l0 = int(floor(l));
@@ -76,6 +75,69 @@ vec4 sample_material(int n, float u, float v, float lod) {
   const vec4 a = material_bilinear(n, l0, u, v);
   if (t <= 0.0 || l1 == l0) return a;
   return mix(a, material_bilinear(n, l1, u, v), t);
+}
+
+// Hex-tiling at global material texel (gx + fx, gy + fy): reference_compositor.cpp hex_sample.
+vec4 hex_sample(int n, int64_t gx, float fx, int64_t gy, float fy, float lod) {
+  const int64_t L = int64_t(P.materials[n].hex_edge), H = int64_t(P.materials[n].hex_row);
+  const int64_t R = int64_t(P.materials[n].resolution);
+  const int64_t j = tvt_floor_div(gy, H);
+  const float b = (float(gy - j * H) + fy) / float(H);
+  const int64_t xs = gx - j * (L / 2);
+  int64_t i = tvt_floor_div(xs, L);
+  float a = (float(xs - i * L) + fx) / float(L) - 0.5 * b;
+  if (a < 0.0) {
+    i -= 1;
+    a += 1.0;
+  }
+  int64_t vx[3], vy[3];
+  float w[3];
+  if (a + b < 1.0) {
+    vx[0] = i; vy[0] = j; w[0] = 1.0 - a - b;
+    vx[1] = i + 1; vy[1] = j; w[1] = a;
+    vx[2] = i; vy[2] = j + 1; w[2] = b;
+  } else {
+    vx[0] = i + 1; vy[0] = j + 1; w[0] = a + b - 1.0;
+    vx[1] = i + 1; vy[1] = j; w[1] = 1.0 - b;
+    vx[2] = i; vy[2] = j + 1; w[2] = 1.0 - a;
+  }
+  const float gamma = P.materials[n].hex_sharpness, cut = P.materials[n].hex_cut;
+  float sum = 0.0;
+  for (int k = 0; k < 3; ++k) {
+    w[k] = safe_pow(max(w[k], 0.0), gamma);
+    sum += w[k];
+  }
+  float kept = 0.0;
+  for (int k = 0; k < 3; ++k) {
+    w[k] = max(w[k] / sum - cut, 0.0);
+    kept += w[k];
+  }
+  vec4 linear = vec4(0.0);
+  float squares = 0.0;
+  for (int k = 0; k < 3; ++k) {
+    const float wk = w[k] / kept;
+    if (wk <= 0.0) continue;  // most of the plane: one or two tiles, their fetches only
+    squares += wk * wk;
+    const uint h = tvt_hash_coord(vx[k], vy[k], P.materials[n].hex_salt);
+    const float u = float((gx + int64_t(h & 0xffffu)) & (R - 1)) + fx;
+    const float v = float((gy + int64_t(h >> 16u)) & (R - 1)) + fy;
+    linear += wk * sample_material(n, u, v, lod);
+  }
+  const vec4 mean = material_texel(n, P.materials[n].mip_count - 1, 0, 0);
+  const vec4 preserved = mean + (linear - mean) / sqrt(squares);
+  const vec4 r = mix(linear, preserved, P.materials[n].hex_preserve);
+  return vec4(clamp01(r.x), clamp01(r.y), clamp01(r.z), clamp01(r.w));
+}
+
+// The material at a terrain position (x, y): its coordinates (global texel, for FBPB) and the
+// tiled texture, or hex-tiling where the material has it.
+vec4 material_at(int n, int64_t x_fp, int64_t y_fp, float lod, out int64_t gx, out int64_t gy) {
+  float fx, fy;
+  material_texel_coord(n, x_fp, gx, fx);
+  material_texel_coord(n, y_fp, gy, fy);
+  if (P.materials[n].hex_edge > 0) return hex_sample(n, gx, fx, gy, fy, lod);
+  const int64_t mask = int64_t(P.materials[n].resolution - 1);
+  return sample_material(n, float(gx & mask) + fx, float(gy & mask) + fy, lod);
 }
 
 // DPT eq 4.1-4.4, Algorithms 2-3.
@@ -122,11 +184,8 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
   for (int n = 0; n < P.material_count; ++n)
     wts[n] = (material_mask & (1u << uint(n))) != 0u ? weight_at(P.materials[n].weight_layer, x_fp, y_fp) : 0.0;
 
-  float u0, v0;
   int64_t g0x, g0y;
-  material_coord(0, x_fp, u0, g0x);
-  material_coord(0, y_fp, v0, g0y);
-  vec4 result = sample_material(0, u0, v0, material_lod(0, footprint));
+  vec4 result = material_at(0, x_fp, y_fp, material_lod(0, footprint), g0x, g0y);
   float weight_sum = wts[0];
   bool feature_above = false;
 
@@ -139,11 +198,8 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
     if (plain <= 0.0 && (mode == TVT_MODE_LINEAR || mode == TVT_MODE_BLENDMAP)) continue;
 
     const float lod = material_lod(n, footprint);
-    float u, v;    // tile-local material coordinates
     int64_t gx, gy;  // global material texel (FBPB centroids)
-    material_coord(n, x_fp, u, gx);
-    material_coord(n, y_fp, v, gy);
-    vec4 colour = sample_material(n, u, v, lod);
+    vec4 colour = material_at(n, x_fp, y_fp, lod, gx, gy);
     float b = 0.0;
     float height = colour.a;
     bool visible = false;

@@ -119,6 +119,45 @@ TEST_F(GpuCompose, MatchesReferenceWithAHundredTexelGreyscaleImageMaterial) {
   std::filesystem::remove_all(dir);
 }
 
+// Hex-tiling on every material it applies to (FBPB layers above the base keep their texture).
+TEST_F(GpuCompose, HexTilingMatchesReferenceForEveryMethodAndAtTheFarCornerOf2To24) {
+  const SceneAssets& assets = default_assets(16);
+  const Region region = interesting_region(assets, 0, 256, 256);
+  std::vector<PageId> pages = pages_covering(assets.desc.vt, region);
+  pages.resize(std::min<size_t>(pages.size(), 3));
+  pages.push_back(PageId{3, 5, 9});
+  pages.push_back(PageId{7, 1, 0});  // hex tiles far smaller than a texel's footprint
+  for (Method m : k_all_methods) {
+    ComposeOptions o = options_for(m);
+    o.hex = true;
+    auto packed = pack_scene(assets, o);
+    ASSERT_TRUE(packed.ok());
+    EXPECT_GT(packed->params.materials[0].hex_edge, 0) << to_string(m);  // the base always has it
+    expect_agreement(assets, o, pages, std::string(to_string(m)) + " hex");
+  }
+  const SceneAssets& far = default_assets(24);
+  const uint32_t last = uint32_t(far.desc.vt.pages_per_side(0) - 1);
+  ComposeOptions o = options_for(Method::Dpt2);
+  o.hex = true;
+  expect_agreement(far, o, {{0, 0, 0}, {0, last, last}, {0, last - 1, last}, {4, 4095, 4095}}, "dpt2 hex far corner");
+}
+
+// The parameters at their limits: the smallest lattice (edge 2 texels), linear weights
+// (gamma 1) and a near step (gamma 64), no variance preservation and full.
+TEST_F(GpuCompose, HexTilingAtExtremeParametersMatchesReference) {
+  SceneDesc d = default_scene();
+  d.vt.log2_size = 16;
+  const double settings[][3] = {{2, 1, 0}, {2, 64, 1}, {65536, 7, 1}, {6, 7, 0.5}};
+  for (const auto& [edge, sharpness, preserve] : settings) {
+    for (MaterialDesc& m : d.materials) m.hex = HexDesc{true, edge, sharpness, preserve};
+    auto assets = load_scene_assets(d);
+    ASSERT_TRUE(assets.ok()) << assets.error().message;
+    const std::string what = "hex edge " + std::to_string(edge) + " gamma " + std::to_string(sharpness) +
+                             " preserve " + std::to_string(preserve);
+    expect_agreement(assets.value(), options_for(Method::BlendMap), {{0, 30, 41}, {2, 3, 4}}, what);
+  }
+}
+
 TEST_F(GpuCompose, SupersampledMipsMatchReference) {
   const SceneAssets& assets = default_assets(16);
   ComposeOptions o = options_for(Method::FbpbDpt);

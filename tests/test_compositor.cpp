@@ -387,3 +387,125 @@ TEST(Mips, GroundTruthIsSupersamplingAtTheLevel0Rate) {
     }
   EXPECT_GT(err_direct, 0.0);  // direct composition at mip 2 is an approximation of it
 }
+
+namespace {
+
+// One material, the rock generator at 64 texels tiled every 64 level-0 texels, with hex-tiling
+// set as given; the luminance of mip-0 texels over 4 x 4 periods.
+struct Luminance {
+  std::vector<double> l;
+  int side = 256;
+  double at(int x, int y) const { return l[size_t(y) * size_t(side) + size_t(x)]; }
+};
+
+Luminance rock_luminance(std::optional<HexDesc> hex) {
+  SceneDesc d = default_scene();
+  d.materials.resize(1);
+  d.materials[0].albedo.generator = "rock";
+  d.materials[0].albedo.resolution = 64;
+  d.materials[0].period_texels = 64;
+  if (hex) d.materials[0].hex = *hex;
+  d.vt.log2_size = 12;
+  auto assets = load_scene_assets(d);
+  EXPECT_TRUE(assets.ok()) << (assets.ok() ? "" : assets.error().message);
+  const PackedScene s = pack(assets.value());
+  Luminance r;
+  r.l.resize(size_t(r.side) * size_t(r.side));
+  for (int y = 0; y < r.side; ++y)
+    for (int x = 0; x < r.side; ++x) {
+      const glm::dvec4 c = compose_texel_reference(s, 0, 1000 + x, 2000 + y);
+      r.l[size_t(y) * size_t(r.side) + size_t(x)] = 0.2126 * c.r + 0.7152 * c.g + 0.0722 * c.b;
+    }
+  return r;
+}
+
+// Pearson correlation of the luminance with itself shifted by (dx, dy).
+double correlation(const Luminance& a, int dx, int dy) {
+  double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0, n = 0;
+  for (int y = 0; y + dy < a.side; ++y)
+    for (int x = 0; x + dx < a.side; ++x) {
+      const double u = a.at(x, y), v = a.at(x + dx, y + dy);
+      sx += u, sy += v, sxx += u * u, syy += v * v, sxy += u * v, n += 1;
+    }
+  const double cov = sxy / n - sx / n * sy / n;
+  return cov / std::sqrt((sxx / n - sx * sx / n / n) * (syy / n - sy * sy / n / n));
+}
+
+double mean_of(const Luminance& a) {
+  double s = 0;
+  for (double v : a.l) s += v;
+  return s / double(a.l.size());
+}
+
+double deviation_of(const Luminance& a) {
+  const double m = mean_of(a);
+  double s = 0;
+  for (double v : a.l) s += (v - m) * (v - m);
+  return std::sqrt(s / double(a.l.size()));
+}
+
+}  // namespace
+
+// The point of hex-tiling: a texture tiled with period T repeats exactly at lag T (correlation
+// 1); with hex-tiling the lag-T correlation drops to what unrelated parts of the texture share.
+TEST(HexTiling, RemovesTheRepetitionAtTheTilePeriod) {
+  const Luminance tiled = rock_luminance(std::nullopt), hex = rock_luminance(HexDesc{true});
+  const double tiled_x = correlation(tiled, 64, 0), tiled_y = correlation(tiled, 0, 64);
+  const double hex_x = correlation(hex, 64, 0), hex_y = correlation(hex, 0, 64);
+  RecordProperty("lag_T_correlation_tiled", std::to_string(tiled_x));
+  RecordProperty("lag_T_correlation_hex", std::to_string(hex_x));
+  EXPECT_GT(tiled_x, 0.99);
+  EXPECT_GT(tiled_y, 0.99);
+  EXPECT_LT(hex_x, 0.5 * tiled_x);
+  EXPECT_LT(hex_y, 0.5 * tiled_y);
+  // Neighbouring texels still belong to one tile: the texture's own short-range structure stays.
+  EXPECT_GT(correlation(hex, 1, 0), 0.5 * correlation(tiled, 1, 0));
+}
+
+// Variance preservation about the mean: the blended tiles keep the texture's mean and close to
+// its contrast; a linear blend (preserve 0) washes the contrast out where tiles mix.
+TEST(HexTiling, KeepsTheMeanAndPreservesContrastUnlessToldNot) {
+  const Luminance tiled = rock_luminance(std::nullopt);
+  const Luminance kept = rock_luminance(HexDesc{true, 0.0, 7.0, 1.0});
+  const Luminance washed = rock_luminance(HexDesc{true, 0.0, 1.0, 0.0});
+  EXPECT_NEAR(mean_of(kept), mean_of(tiled), 0.03);
+  EXPECT_NEAR(mean_of(washed), mean_of(tiled), 0.03);
+  EXPECT_NEAR(deviation_of(kept), deviation_of(tiled), 0.15 * deviation_of(tiled));
+  EXPECT_LT(deviation_of(washed), 0.9 * deviation_of(kept));
+}
+
+// Hex-tiling is a per-material choice: unset materials keep the tiled texture bit for bit, the
+// option forces it on or off, and FBPB layers above the base never get it.
+TEST(HexTiling, PerMaterialAndNeverOnFbpbLayers) {
+  SceneDesc d = default_scene();
+  d.vt.log2_size = 12;
+  d.materials[1].hex = HexDesc{true, 40.0};
+  auto assets = load_scene_assets(d);
+  ASSERT_TRUE(assets.ok()) << assets.error().message;
+  const PackedScene scene = pack(assets.value());
+  EXPECT_EQ(scene.params.materials[0].hex_edge, 0);
+  EXPECT_EQ(scene.params.materials[1].hex_edge, 40);
+  EXPECT_EQ(scene.params.materials[1].hex_row, 35);  // round(40 sqrt(3) / 2)
+  ComposeOptions on = options_for(Method::FbpbDpt);
+  on.hex = true;
+  const PackedScene forced = pack(assets.value(), on);
+  EXPECT_EQ(forced.params.materials[0].hex_edge, 128);  // half of the 256-texel base
+  for (int n = 1; n < forced.params.material_count; ++n) {
+    const int mode = forced.params.materials[n].mode;
+    if (mode == gpu::TVT_MODE_FBPB || mode == gpu::TVT_MODE_FBPB_DPT) {
+      EXPECT_EQ(forced.params.materials[n].hex_edge, 0) << n;
+    } else {
+      EXPECT_GT(forced.params.materials[n].hex_edge, 0) << n;
+    }
+  }
+  ComposeOptions off;
+  off.hex = false;
+  EXPECT_EQ(pack(assets.value(), off).params.materials[1].hex_edge, 0);
+  // Off, the scene composes exactly as it did before the mode existed.
+  SceneDesc plain = default_scene();
+  plain.vt.log2_size = 12;
+  auto plain_assets = load_scene_assets(plain);
+  ASSERT_TRUE(plain_assets.ok());
+  EXPECT_EQ(compose_page_reference(pack(plain_assets.value()), {0, 3, 5}).value(),
+            compose_page_reference(pack(assets.value(), off), {0, 3, 5}).value());
+}

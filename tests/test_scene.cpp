@@ -633,6 +633,18 @@ TEST_F(SceneTest, EveryRuleViolationNamesFileAndPointer) {
       Set("/materials/2/dpt/fade_texels", json::array({2, 3e9}), "/materials/2/dpt/fade_texels/1"),
       Set("/materials/2/dpt/fade_texels", 4),
       Set("/materials/2/dpt/colour", 1),
+      // hex
+      Set("/materials/1/hex", 3),
+      Set("/materials/1/hex", "yes"),
+      Set("/materials/1/hex", json::array()),
+      Set("/materials/1/hex", {{"edge", 1}}, "/materials/1/hex/edge"),
+      Set("/materials/1/hex", {{"edge", 70000}}, "/materials/1/hex/edge"),
+      Set("/materials/1/hex", {{"edge", "wide"}}, "/materials/1/hex/edge"),
+      Set("/materials/1/hex", {{"sharpness", 0.5}}, "/materials/1/hex/sharpness"),
+      Set("/materials/1/hex", {{"sharpness", 65}}, "/materials/1/hex/sharpness"),
+      Set("/materials/1/hex", {{"preserve", -0.1}}, "/materials/1/hex/preserve"),
+      Set("/materials/1/hex", {{"preserve", 1.5}}, "/materials/1/hex/preserve"),
+      Set("/materials/1/hex", {{"rotation", 1}}, "/materials/1/hex/rotation"),
   };
 
   ASSERT_TRUE(parse(full_scene_json()).ok());
@@ -734,6 +746,33 @@ TEST_F(SceneTest, OnlyTheFirstMaterialDefaultsToRemainder) {
   ASSERT_TRUE(r.ok()) << r.error().message;
   EXPECT_EQ(r->materials[0].weight.kind, WeightDesc::Kind::Splat);
   EXPECT_EQ(r->materials[0].weight.splat_channel, 1u);
+}
+
+TEST_F(SceneTest, HexTilingIsOffUnlessAskedAndRoundTrips) {
+  json j = full_scene_json();
+  j["materials"][1]["hex"] = true;
+  j["materials"][2]["hex"] = {{"edge", 96}, {"sharpness", 12}, {"preserve", 0.25}};
+  j["materials"][3]["hex"] = false;
+  const Result<SceneDesc> r = parse(j);
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_FALSE(r->materials[0].hex.enabled);
+  EXPECT_TRUE(r->materials[1].hex.enabled);
+  EXPECT_EQ(r->materials[1].hex.edge, 0.0);  // half the material's resolution, at pack time
+  EXPECT_EQ(r->materials[1].hex.sharpness, 7.0);
+  EXPECT_EQ(r->materials[1].hex.preserve, 1.0);
+  EXPECT_TRUE(r->materials[2].hex.enabled);
+  EXPECT_EQ(r->materials[2].hex.edge, 96.0);
+  EXPECT_EQ(r->materials[2].hex.sharpness, 12.0);
+  EXPECT_EQ(r->materials[2].hex.preserve, 0.25);
+  EXPECT_FALSE(r->materials[3].hex.enabled);
+  const std::string text = scene_to_json(r.value());
+  const Result<SceneDesc> again = parse_scene(text, "again.json", dir.string());
+  ASSERT_TRUE(again.ok()) << again.error().message;
+  EXPECT_EQ(scene_to_json(again.value()), text);
+  EXPECT_TRUE(again->materials[1].hex.enabled);
+  EXPECT_EQ(again->materials[2].hex.edge, 96.0);
+  // A scene without hex-tiling serialises without the field (its identity is unchanged).
+  EXPECT_EQ(scene_to_json(default_scene()).find("\"hex\""), std::string::npos);
 }
 
 TEST_F(SceneTest, DptModesNeedALayer) {

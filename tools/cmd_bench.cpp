@@ -56,9 +56,10 @@ Result<std::vector<Row>> measure(GpuComposer& composer, const std::vector<Packed
       if (!t) return t.error();
       best[i] = std::min(best[i], t.value());
     }
+  constexpr size_t k_methods = std::size(k_all_methods);
   for (size_t i = 0; i < packed.size(); ++i) {
     Row& row = rows[i];
-    row.method = std::string(to_string(k_all_methods[i]));
+    row.method = std::string(to_string(k_all_methods[i % k_methods])) + (i >= k_methods ? " hex" : "");
     row.gpu_pages_s = double(pages.size()) / best[i];
     row.gpu_mtexel_s = row.gpu_pages_s * texels_per_page * 1e-6;
     if (!a.skip_cpu) {
@@ -73,17 +74,82 @@ Result<std::vector<Row>> measure(GpuComposer& composer, const std::vector<Packed
   return rows;
 }
 
+// Rows 0..5: the methods; 6..11: the same with hex-tiling on every material it applies to.
 double print_rows(const char* title, const std::vector<Row>& rows, bool cpu) {
+  constexpr size_t k_methods = std::size(k_all_methods);
   const double blend = rows[1].gpu_pages_s;
   std::printf("\n%s\n%-10s %12s %12s %12s %12s %10s\n", title, "method", "GPU pages/s", "GPU Mtex/s", "CPU pages/s",
               "CPU Mtex/s", "GPU/blend");
-  for (const Row& r : rows)
+  for (size_t i = 0; i < k_methods; ++i) {
+    const Row& r = rows[i];
     std::printf("%-10s %12.1f %12.2f %12.3f %12.3f %9.1f%%\n", r.method.c_str(), r.gpu_pages_s, r.gpu_mtexel_s,
                 r.cpu_pages_s, r.cpu_mtexel_s, 100.0 * r.gpu_pages_s / blend);
-  const double ratio = rows.back().gpu_pages_s / blend;
+  }
+  const Row& last = rows[k_methods - 1];
+  const double ratio = last.gpu_pages_s / blend;
   std::printf("FBPB+DPT2 / blend-map throughput (GPU): %.1f%% (target >= 90%%)\n", 100.0 * ratio);
-  if (cpu) std::printf("GPU / CPU-reference speed, FBPB+DPT2: %.1fx\n", rows.back().gpu_pages_s / rows.back().cpu_pages_s);
+  if (cpu) std::printf("GPU / CPU-reference speed, FBPB+DPT2: %.1fx\n", last.gpu_pages_s / last.cpu_pages_s);
+  std::printf("Hex-tiling on every material it applies to (not FBPB layers above the base), cost per page:\n");
+  for (size_t i = 0; i < k_methods && k_methods + i < rows.size(); ++i) {
+    const Row &r = rows[i], &h = rows[k_methods + i];
+    std::printf("%-10s %12.1f pages/s with hex, %6.2fx the time without (target <= 1.5x)\n", r.method.c_str(),
+                h.gpu_pages_s, r.gpu_pages_s / h.gpu_pages_s);
+  }
   return ratio;
+}
+
+// Repetition: the luminance correlation of a composed region with itself at a lag of one tile
+// period (1 for a plainly tiled texture), with and without hex-tiling. One material, the
+// scene's `material`, alone as the base; pages of mip `mip` composed on the GPU.
+Result<std::pair<double, double>> lag_period_correlation(vk::Context& g, const SceneAssets& assets, size_t material,
+                                                         uint32_t mip) {
+  SceneDesc d = assets.desc;
+  d.materials = {d.materials.at(material)};
+  d.materials[0].weight = WeightDesc{};
+  d.materials[0].mode = Mode::BlendMap;
+  auto one = load_scene_assets(d);
+  if (!one) return one.error();
+  const VtConfig& vt = d.vt;
+  const double period = d.materials[0].period_texels / double(1u << mip);  // texels of mip `mip`
+  const int lag = int(std::lround(period));
+  const int side = int(vt.page_texels) * int(std::ceil(2.0 * period / double(vt.page_texels) + 1.0));
+  const uint32_t n = uint32_t(side) / vt.page_texels;
+  std::vector<PageId> pages;
+  for (uint32_t y = 0; y < n; ++y)
+    for (uint32_t x = 0; x < n; ++x) pages.push_back(PageId{mip, 3 + x, 5 + y});
+  double out[2];
+  for (int hex = 0; hex < 2; ++hex) {
+    ComposeOptions o;
+    o.hex = hex == 1;
+    auto packed = pack_scene(one.value(), o);
+    if (!packed) return packed.error();
+    if (auto l = packed->load_all(); !l) return l.error();
+    auto composer = GpuComposer::create(g, packed.value(), uint32_t(pages.size()));
+    if (!composer) return composer.error();
+    auto composed = composer.value()->compose_pages(pages);
+    if (!composed) return composed.error();
+    std::vector<double> lum(size_t(side) * size_t(side));
+    const uint32_t slot = vt.slot_texels(), b = vt.border_texels;
+    for (size_t i = 0; i < pages.size(); ++i) {
+      const std::vector<uint8_t>& px = composed.value()[i];
+      const uint32_t ox = uint32_t(i % n) * vt.page_texels, oy = uint32_t(i / n) * vt.page_texels;
+      for (uint32_t y = 0; y < vt.page_texels; ++y)
+        for (uint32_t x = 0; x < vt.page_texels; ++x) {
+          const uint8_t* t = &px[(size_t(y + b) * slot + (x + b)) * 4];
+          lum[size_t(oy + y) * size_t(side) + (ox + x)] = 0.2126 * t[0] + 0.7152 * t[1] + 0.0722 * t[2];
+        }
+    }
+    double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0, cnt = 0;
+    for (int y = 0; y < side; ++y)
+      for (int x = 0; x + lag < side; ++x) {
+        const double u = lum[size_t(y) * size_t(side) + size_t(x)], v = lum[size_t(y) * size_t(side) + size_t(x + lag)];
+        sx += u, sy += v, sxx += u * u, syy += v * v, sxy += u * v, cnt += 1;
+      }
+    const double cov = sxy / cnt - (sx / cnt) * (sy / cnt);
+    const double var = std::sqrt(std::max(0.0, (sxx / cnt - (sx / cnt) * (sx / cnt)) * (syy / cnt - (sy / cnt) * (sy / cnt))));
+    out[hex] = var > 0 ? cov / var : 0.0;
+  }
+  return std::make_pair(out[0], out[1]);
 }
 
 int run_bench_compose(const BenchComposeArgs& a) {
@@ -115,11 +181,14 @@ int run_bench_compose(const BenchComposeArgs& a) {
   auto ctx = gpu_context(a.gpu_name);
   if (!ctx) return fail(cmd, ctx.error().message, 1);
   std::vector<PackedScene> packed;
-  for (Method method : k_all_methods) {
-    auto p = pack_scene(assets.value(), options_for(method));
-    if (!p) return fail(cmd, p.error().message, 2);
-    packed.push_back(std::move(p.value()));
-  }
+  for (bool hex : {false, true})
+    for (Method method : k_all_methods) {
+      ComposeOptions o = options_for(method);
+      o.hex = hex;
+      auto p = pack_scene(assets.value(), o);
+      if (!p) return fail(cmd, p.error().message, 2);
+      packed.push_back(std::move(p.value()));
+    }
   auto composer = GpuComposer::create(*ctx.value(), packed[0], uint32_t(dense.size()));
   if (!composer) return fail(cmd, composer.error().message, 1);
 
@@ -135,9 +204,22 @@ int run_bench_compose(const BenchComposeArgs& a) {
   const std::vector<Row>& rows_spread = measured_spread.value();
   const double ratio_spread = print_rows("Pages spread over the terrain (as a flythrough requests them):", rows_spread, !a.skip_cpu);
 
+  // Repetition of each material alone, at a lag of its period (mip 1 keeps the region small).
+  std::vector<std::pair<std::string, std::pair<double, double>>> repetition;
+  std::printf("\nRepetition: luminance correlation at a lag of one tile period (each material alone, mip 1; "
+              "1 = exact repeat; target: at least halved):\n");
+  for (size_t m = 0; m < assets->desc.materials.size(); ++m) {
+    auto c = lag_period_correlation(*ctx.value(), assets.value(), m, 1);
+    if (!c) return fail(cmd, c.error().message, 1);
+    repetition.emplace_back(assets->desc.materials[m].name, c.value());
+    std::printf("  %-10s tiled %.3f   hex %.3f   (%.2fx)\n", assets->desc.materials[m].name.c_str(), c->first, c->second,
+                c->first != 0 ? c->second / c->first : 0.0);
+  }
+
   if (!a.json_out.empty()) {
     nlohmann::json j;
     j["device"] = ctx.value()->device_name();
+    for (const auto& [name, c] : repetition) j["repetition_lag_period"][name] = {{"tiled", c.first}, {"hex", c.second}};
     j["pages"] = dense.size();
     j["slot_texels"] = vt.slot_texels();
     j["mip"] = a.mip;

@@ -30,7 +30,7 @@ struct TvtDptLayer {      // 32 bytes
   float patch_texels;     // S_k as float, for the minification fade only
 };
 
-struct TvtMaterial {      // 224 bytes
+struct TvtMaterial {      // 256 bytes
   int64_t period_fp;      // tiling period T_n: level-0 texels per repeat * 256
   uint texel_offset;      // first texel of mip 0 in the material texel buffer (RGBA8 words)
   uint meta_offset;       // first texel in the meta buffer (uvec2 each), or TVT_NO_META
@@ -51,6 +51,15 @@ struct TvtMaterial {      // 224 bytes
   float fbpb_fade_lo;     // FBPB fades to blend map between these material LODs
   float fbpb_fade_hi;
   float pad0, pad1;
+  // Hex-tiling (anti-repetition, docs/composition.md): 0 = off; else the triangle lattice's
+  // edge L (even) and row height H = round(L sqrt(3) / 2), in material texels.
+  int hex_edge;
+  int hex_row;
+  uint hex_salt;          // per-vertex tile offset hash salt
+  float hex_sharpness;    // gamma: barycentric weights raised to this power
+  float hex_preserve;     // 0: linear blend of the tiles; 1: variance-preserving about the mean
+  float hex_cut;          // normalised weights below this are dropped (their fetch skipped)
+  float pad2, pad3;
   TvtDptLayer dpt[TVT_MAX_DPT_LAYERS];
 };
 
@@ -83,9 +92,9 @@ TVT_END
 
 #ifdef __cplusplus
 static_assert(sizeof(tvt::gpu::TvtDptLayer) == 32);
-static_assert(sizeof(tvt::gpu::TvtMaterial) == 224);
-static_assert(offsetof(tvt::gpu::TvtMaterial, dpt) == 96);
-static_assert(sizeof(tvt::gpu::TvtComposeParams) == 48 + 16 * 224);
+static_assert(sizeof(tvt::gpu::TvtMaterial) == 256);
+static_assert(offsetof(tvt::gpu::TvtMaterial, dpt) == 128);
+static_assert(sizeof(tvt::gpu::TvtComposeParams) == 48 + 16 * 256);
 static_assert(offsetof(tvt::gpu::TvtComposeParams, materials) == 48);
 static_assert(sizeof(tvt::gpu::TvtPageJob) == 32);
 #endif
