@@ -81,11 +81,28 @@ vec4 sample_material(int n, float u, float v, float lod) {
 vec4 hex_sample(int n, int64_t gx, float fx, int64_t gy, float fy, float lod) {
   const int64_t L = int64_t(P.materials[n].hex_edge), H = int64_t(P.materials[n].hex_row);
   const int64_t R = int64_t(P.materials[n].resolution);
-  const int64_t j = tvt_floor_div(gy, H);
-  const float b = (float(gy - j * H) + fy) / float(H);
-  const int64_t xs = gx - j * (L / 2);
-  int64_t i = tvt_floor_div(xs, L);
-  float a = (float(xs - i * L) + fx) / float(L) - 0.5 * b;
+  int64_t i, j;
+  float a, b;
+  if (abs(gx) < int64_t(1 << 29) && abs(gy) < int64_t(1 << 29)) {
+    // Terrains up to 2^29 material texels a side (the default scene at V = 2^24 is 2^23): the
+    // same floor divisions in 32 bits, several times cheaper than 64-bit ones on GPUs.
+    const int gy32 = int(gy), h32 = int(H), l32 = int(L);
+    int j32 = gy32 / h32;
+    if (gy32 - j32 * h32 < 0) j32 -= 1;
+    b = (float(gy32 - j32 * h32) + fy) / float(h32);
+    const int xs32 = int(gx) - j32 * (l32 / 2);
+    int i32 = xs32 / l32;
+    if (xs32 - i32 * l32 < 0) i32 -= 1;
+    a = (float(xs32 - i32 * l32) + fx) / float(l32) - 0.5 * b;
+    i = int64_t(i32);
+    j = int64_t(j32);
+  } else {
+    j = tvt_floor_div(gy, H);
+    b = (float(gy - j * H) + fy) / float(H);
+    const int64_t xs = gx - j * (L / 2);
+    i = tvt_floor_div(xs, L);
+    a = (float(xs - i * L) + fx) / float(L) - 0.5 * b;
+  }
   if (a < 0.0) {
     i -= 1;
     a += 1.0;
@@ -150,9 +167,22 @@ void dpt(int n, int64_t x_fp, int64_t y_fp, float footprint, float plain, float 
     fade_max = max(fade_max, fade);
     if (fade <= 0.0) continue;
     const int64_t ps = P.materials[n].dpt[k].patch_fp;
-    const int64_t ix = tvt_floor_div(x_fp, ps), iy = tvt_floor_div(y_fp, ps);
-    const float fx = float(x_fp - ix * ps) / float(ps);
-    const float fy = float(y_fp - iy * ps) / float(ps);
+    int64_t ix, iy;
+    float fx, fy;
+    if (x_fp >= 0 && y_fp >= 0 && x_fp < int64_t(1 << 30) && y_fp < int64_t(1 << 30) && ps < int64_t(1 << 30)) {
+      // Positions below 2^22 texels (every page of V <= 2^22): 32-bit divisions, the same quotients.
+      const int ps32 = int(ps), x32 = int(x_fp), y32 = int(y_fp);
+      const int ix32 = x32 / ps32, iy32 = y32 / ps32;
+      fx = float(x32 - ix32 * ps32) / float(ps32);
+      fy = float(y32 - iy32 * ps32) / float(ps32);
+      ix = int64_t(ix32);
+      iy = int64_t(iy32);
+    } else {
+      ix = tvt_floor_div(x_fp, ps);
+      iy = tvt_floor_div(y_fp, ps);
+      fx = float(x_fp - ix * ps) / float(ps);
+      fy = float(y_fp - iy * ps) / float(ps);
+    }
     // m_j = p_j > 0 && r_j^R <= p_j^P (eq 4.1, 4.2), compared in the log domain: two log2
     // instead of two pow; r is never 0, and p = 0 fails the first test.
     const int layer_w = P.materials[n].weight_layer;

@@ -156,6 +156,18 @@ TEST_F(GpuCompose, HexTilingAtExtremeParametersMatchesReference) {
                              " preserve " + std::to_string(preserve);
     expect_agreement(assets.value(), options_for(Method::BlendMap), {{0, 30, 41}, {2, 3, 4}}, what);
   }
+  // Material texel indices beyond 2^29 (one texture repeat per level-0 texel at V = 2^24):
+  // the lattice in 64-bit arithmetic rather than the 32-bit fast path.
+  SceneDesc far = default_scene();
+  far.vt.log2_size = 24;
+  for (MaterialDesc& m : far.materials) {
+    m.hex = HexDesc{true};
+    m.period_texels = 1.0;
+  }
+  auto assets = load_scene_assets(far);
+  ASSERT_TRUE(assets.ok()) << assets.error().message;
+  const uint32_t last = uint32_t(far.vt.pages_per_side(0) - 1);
+  expect_agreement(assets.value(), options_for(Method::Dpt2), {{0, last, last}, {0, last / 2, 3}}, "hex, 2^32 material texels");
 }
 
 TEST_F(GpuCompose, SupersampledMipsMatchReference) {

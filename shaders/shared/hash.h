@@ -37,9 +37,11 @@ TVT_FN uint tvt_salt(uint seed, uint material, uint layer, uint purpose) {
 }
 
 // floor(a / b) and the matching non-negative remainder for b > 0.
+// One division: the remainder comes from a multiplication (a 64-bit division is a long
+// software sequence on GPUs, and div and mod were two of them).
 TVT_FN int64_t tvt_floor_div(int64_t a, int64_t b) {
   int64_t q = a / b;
-  if ((a % b) != int64_t(0) && a < int64_t(0)) q -= int64_t(1);
+  if (a - q * b < int64_t(0)) q -= int64_t(1);
   return q;
 }
 TVT_FN int64_t tvt_floor_mod(int64_t a, int64_t b) { return a - tvt_floor_div(a, b) * b; }
