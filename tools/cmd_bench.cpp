@@ -7,7 +7,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
+#include <map>
 #include <memory>
 
 #include "compose/packed_scene.h"
@@ -19,6 +21,7 @@
 #include "tools/bench_frame.h"
 #include "tools/cli_common.h"
 #include "tools/commands.h"
+#include "tools/svg_plot.h"
 
 namespace tvt::cli {
 namespace {
@@ -242,8 +245,10 @@ int run_bench_compose(const BenchComposeArgs& a) {
 struct BenchMipsArgs {
   std::string scene;
   std::string gpu_name;
-  std::string method = "fbpb+dpt2";
+  std::vector<std::string> methods = {"fbpb+dpt2"};
   std::vector<uint32_t> mips = {1, 2, 3};
+  std::string json_out;  // and an SVG of PSNR against cost beside it (svg_out, or the .json's name as .svg)
+  std::string svg_out;
   uint32_t pages = 2;
   int repeats = 2;
 };
@@ -267,10 +272,22 @@ double psnr_rgb(const std::vector<uint8_t>& a, const std::vector<uint8_t>& b) {
 // from the 4^m level-0 pages under each page. Error (over payload texels) and cost side by side.
 int run_bench_mips(const BenchMipsArgs& a) {
   const char* cmd = "bench mips";
-  const auto method = method_from_string(a.method);
-  if (!method) return fail(cmd, "--method: unknown method '" + a.method + "'", 2);
+  std::vector<Method> methods;
+  for (const std::string& name : a.methods) {
+    const auto method = method_from_string(name);
+    if (!method) return fail(cmd, "--method: unknown method '" + name + "' (linear, blendmap, fbpb, dpt1, dpt2, fbpb+dpt2)", 2);
+    methods.push_back(*method);
+  }
+  if (methods.empty()) return fail(cmd, "--method: give at least one method", 2);
   if (a.pages < 1 || a.pages > 64) return fail(cmd, "--pages: must be between 1 and 64", 2);
   if (a.repeats < 1 || a.repeats > 100) return fail(cmd, "--repeats: must be between 1 and 100", 2);
+  std::string svg_out = a.svg_out;
+  if (svg_out.empty() && !a.json_out.empty())
+    svg_out = std::filesystem::path(a.json_out).replace_extension(".svg").string();
+  const std::pair<const char*, const std::string*> outputs[] = {{"--json", &a.json_out}, {"--svg", &svg_out}};
+  for (const auto& [flag, path] : outputs)
+    if (!path->empty())
+      if (auto s = check_output_file(flag, *path, true); !s) return fail(cmd, s.error().message, 2);
   auto assets = load_scene_and_assets(a.scene);
   if (!assets) return fail(cmd, assets.error().message, 2);
   // A benchmark times composition, not first-use loading: read every material up front.
@@ -282,71 +299,104 @@ int run_bench_mips(const BenchMipsArgs& a) {
                            std::to_string(vt.mip_count()), 2);
   auto ctx = gpu_context(a.gpu_name);
   if (!ctx) return fail(cmd, ctx.error().message, 1);
-  auto packed = pack_scene(assets.value(), options_for(*method));
-  if (!packed) return fail(cmd, packed.error().message, 2);
-  auto composer = GpuComposer::create(*ctx.value(), packed.value(), std::max(a.pages, 32u));  // 32: the truth's level-0 batches
-  if (!composer) return fail(cmd, composer.error().message, 1);
-  GpuComposer& c = *composer.value();
 
-  std::printf("terravt bench mips: method %s, %u pages per mip, device %s\n\n", a.method.c_str(), a.pages,
-              ctx.value()->device_name().c_str());
-  std::printf("%4s %-16s %12s %10s %12s\n", "mip", "strategy", "ms/page", "PSNR dB", "cost vs direct");
-  for (uint32_t m : a.mips) {
-    const int side = int(std::ceil(std::sqrt(double(a.pages)))) * int(vt.page_texels);
-    std::vector<PageId> pages = pages_covering(vt, interesting_region(assets.value(), m, side, side));
-    pages.resize(std::min<size_t>(pages.size(), a.pages));
-    std::vector<uint32_t> strategies = {1};
-    for (uint32_t s = 2; s <= (1u << m); s *= 2) strategies.push_back(s);  // 2^m: every level-0 texel centre
-    std::vector<std::vector<std::vector<uint8_t>>> results;
-    std::vector<double> best(strategies.size(), 1e300);
-    for (int round = 0; round <= a.repeats; ++round)
-      for (size_t i = 0; i < strategies.size(); ++i) {
-        gpu::TvtComposeParams params = packed->params;
-        params.supersample = int(strategies[i]);
-        c.set_params(params);
-        if (round == 0) {
-          auto composed = c.compose_pages(pages);  // also the warm-up; the scene is loaded
-          if (!composed) return fail(cmd, composed.error().message, 1);
-          results.push_back(std::move(composed.value()));
-          continue;
+  nlohmann::json j;
+  j["device"] = ctx.value()->device_name();
+  j["pages_per_mip"] = a.pages;
+  std::vector<PlotPanel> panels;
+  for (Method method : methods) {
+    auto packed = pack_scene(assets.value(), options_for(method));
+    if (!packed) return fail(cmd, packed.error().message, 2);
+    auto composer = GpuComposer::create(*ctx.value(), packed.value(), std::max(a.pages, 32u));  // 32: the truth's level-0 batches
+    if (!composer) return fail(cmd, composer.error().message, 1);
+    GpuComposer& c = *composer.value();
+    const std::string method_name(to_string(method));
+    PlotPanel panel{method_name, {}};
+    std::map<uint32_t, PlotSeries> curves;  // supersample s -> its points over the mips
+
+    std::printf("terravt bench mips: method %s, %u pages per mip, device %s\n\n", method_name.c_str(), a.pages,
+                ctx.value()->device_name().c_str());
+    std::printf("%4s %-16s %12s %10s %12s\n", "mip", "strategy", "ms/page", "PSNR dB", "cost vs direct");
+    for (uint32_t m : a.mips) {
+      const int side = int(std::ceil(std::sqrt(double(a.pages)))) * int(vt.page_texels);
+      std::vector<PageId> pages = pages_covering(vt, interesting_region(assets.value(), m, side, side));
+      pages.resize(std::min<size_t>(pages.size(), a.pages));
+      std::vector<uint32_t> strategies = {1};
+      for (uint32_t s = 2; s <= (1u << m); s *= 2) strategies.push_back(s);  // 2^m: every level-0 texel centre
+      std::vector<std::vector<std::vector<uint8_t>>> results;
+      std::vector<double> best(strategies.size(), 1e300);
+      for (int round = 0; round <= a.repeats; ++round)
+        for (size_t i = 0; i < strategies.size(); ++i) {
+          gpu::TvtComposeParams params = packed->params;
+          params.supersample = int(strategies[i]);
+          c.set_params(params);
+          if (round == 0) {
+            auto composed = c.compose_pages(pages);  // also the warm-up; the scene is loaded
+            if (!composed) return fail(cmd, composed.error().message, 1);
+            results.push_back(std::move(composed.value()));
+            continue;
+          }
+          auto t = c.time_batch(pages, 1);
+          if (!t) return fail(cmd, t.error().message, 1);
+          best[i] = std::min(best[i], t.value());
         }
-        auto t = c.time_batch(pages, 1);
+      // The truth: level-0 pages composed directly (32 at a time), box-filtered up to mip m.
+      gpu::TvtComposeParams level0 = packed->params;
+      level0.supersample = 1;
+      StoreDesc desc;
+      desc.vt = vt;
+      FilteredPyramid pyramid(desc, [&](std::span<const PageId> ids, std::vector<std::vector<uint8_t>>& out) -> Status {
+        c.set_params(level0);
+        auto composed = c.compose_pages(ids);
+        if (!composed) return composed.error();
+        out = std::move(composed.value());
+        return Ok{};
+      }, PageLookup{}, FilteredPyramid::Options{});
+      const auto t0 = std::chrono::steady_clock::now();
+      std::vector<std::vector<uint8_t>> truth;
+      pyramid.prepare(pages, false);
+      for (const PageId& page : pages) {
+        auto t = pyramid.payload(page);
         if (!t) return fail(cmd, t.error().message, 1);
-        best[i] = std::min(best[i], t.value());
+        truth.push_back(std::move(t.value()));
       }
-    // The truth: level-0 pages composed directly (32 at a time), box-filtered up to mip m.
-    gpu::TvtComposeParams level0 = packed->params;
-    level0.supersample = 1;
-    StoreDesc desc;
-    desc.vt = vt;
-    FilteredPyramid pyramid(desc, [&](std::span<const PageId> ids, std::vector<std::vector<uint8_t>>& out) -> Status {
-      c.set_params(level0);
-      auto composed = c.compose_pages(ids);
-      if (!composed) return composed.error();
-      out = std::move(composed.value());
-      return Ok{};
-    }, PageLookup{}, FilteredPyramid::Options{});
-    const auto t0 = std::chrono::steady_clock::now();
-    std::vector<std::vector<uint8_t>> truth;
-    pyramid.prepare(pages, false);
-    for (const PageId& page : pages) {
-      auto t = pyramid.payload(page);
-      if (!t) return fail(cmd, t.error().message, 1);
-      truth.push_back(std::move(t.value()));
+      const double truth_s = seconds_since(t0);
+      for (size_t i = 0; i < strategies.size(); ++i) {
+        double psnr = 0;
+        for (size_t p = 0; p < pages.size(); ++p) psnr += psnr_rgb(page_payload(vt, results[i][p]), truth[p]);
+        psnr /= double(pages.size());
+        const std::string name = to_string(MipStrategy{strategies[i]});
+        const double ms = 1000.0 * best[i] / double(pages.size()), cost = best[i] / best[0];
+        std::printf("%4u %-16s %12.2f %10.2f %11.1fx\n", m, name.c_str(), ms, psnr, cost);
+        j["methods"][method_name][std::to_string(m)][name] = {{"ms_per_page", ms}, {"psnr_db", psnr}, {"cost_vs_direct", cost}};
+        PlotSeries& curve = curves[strategies[i]];
+        curve.name = name;
+        curve.points.push_back(PlotPoint{cost, psnr, "m" + std::to_string(m)});
+      }
+      std::printf("%4u %-16s %12.2f %10s %11.1fx   (%llu level-0 pages composed, box-filtered; timed once)\n", m,
+                  "ground truth", 1000.0 * truth_s / double(pages.size()), "-", truth_s / best[0],
+                  (unsigned long long)pyramid.composed_pages());
+      j["methods"][method_name][std::to_string(m)]["ground_truth"] = {{"ms_per_page", 1000.0 * truth_s / double(pages.size())},
+                                                                        {"cost_vs_direct", truth_s / best[0]}};
     }
-    const double truth_s = seconds_since(t0);
-    for (size_t i = 0; i < strategies.size(); ++i) {
-      double psnr = 0;
-      for (size_t p = 0; p < pages.size(); ++p) psnr += psnr_rgb(page_payload(vt, results[i][p]), truth[p]);
-      psnr /= double(pages.size());
-      const std::string name = strategies[i] == 1 ? "direct" : "supersample " + std::to_string(strategies[i]) + "x" +
-                                                                   std::to_string(strategies[i]);
-      const double ms = 1000.0 * best[i] / double(pages.size());
-      std::printf("%4u %-16s %12.2f %10.2f %11.1fx\n", m, name.c_str(), ms, psnr, best[i] / best[0]);
-    }
-    std::printf("%4u %-16s %12.2f %10s %11.1fx   (%llu level-0 pages composed, box-filtered; timed once)\n", m,
-                "ground truth", 1000.0 * truth_s / double(pages.size()), "-", truth_s / best[0],
-                (unsigned long long)pyramid.composed_pages());
+    for (auto& [s, curve] : curves) panel.series.push_back(std::move(curve));
+    panels.push_back(std::move(panel));
+    std::printf("\n");
+  }
+  if (!a.json_out.empty())
+    if (auto w = write_text_file(a.json_out, j.dump(2) + "\n"); !w) return fail(cmd, "--json: " + w.error().message, 1);
+  if (!svg_out.empty()) {
+    PlotLayout layout;
+    layout.title = "Mip strategies: PSNR against cost";
+    layout.subtitle = "truth: the box-filtered level-0 composition; " + std::to_string(a.pages) + " pages per mip on " +
+                      ctx.value()->device_name();
+    layout.x_label = "cost per page relative to direct composition (log scale); points labelled by mip";
+    layout.y_label = "PSNR dB";
+    layout.y_min = 15;
+    layout.y_max = 60;
+    layout.target_y = 35;
+    layout.target_label = "35 dB target";
+    if (auto w = write_text_file(svg_out, svg_plot(layout, panels)); !w) return fail(cmd, "--svg: " + w.error().message, 1);
   }
   return 0;
 }
@@ -367,7 +417,11 @@ const CommandRegistrar k_register{
       auto m = std::make_shared<BenchMipsArgs>();
       CLI::App* mc = app.add_subcommand("mips", "Direct vs supersampled mip composition against the ground truth: the box-filter pyramid of level-0 pages");
       mc->add_option("--scene", m->scene, "Scene JSON file (default: the built-in scene)")->check(regular_file());
-      mc->add_option("--method", m->method, "Transition method")->capture_default_str();
+      mc->add_option("--method", m->methods, "Transition methods, comma-separated (one panel each in the SVG)")
+          ->delimiter(',')
+          ->capture_default_str();
+      mc->add_option("--json", m->json_out, "Write the figures as JSON (and the SVG plot beside it)");
+      mc->add_option("--svg", m->svg_out, "Write the PSNR-against-cost plot here (default: the --json name as .svg)");
       mc->add_option("--mips", m->mips, "Mip levels (1..6)")->delimiter(',');
       mc->add_option("--pages", m->pages, "Pages per mip")->capture_default_str();
       mc->add_option("--repeats", m->repeats, "Interleaved timing rounds")->capture_default_str();

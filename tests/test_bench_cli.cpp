@@ -1,0 +1,90 @@
+// `terravt bench mips` end to end (lavapipe): the table, its JSON and the PSNR-against-cost SVG,
+// and the flags it refuses.
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+
+#include "support/cli.h"
+#include "support/temp_dir.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+size_t count(const std::string& text, const std::string& what) {
+  size_t n = 0;
+  for (size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+  return n;
+}
+}  // namespace
+
+TEST(BenchMipsCli, WritesJsonAndOnePlotPanelPerMethodWithACurvePerStrategy) {
+  const fs::path dir = tvt::test::fresh_test_dir("tvt_bench_mips");
+  const std::string scene = tvt::test::write_small_default_scene(dir);
+  const fs::path json_path = dir / "mips.json";
+  std::string out;
+  ASSERT_EQ(tvt::test::run_terravt(dir,
+                                   "bench mips --scene " + scene + " --method blendmap,dpt2 --mips 1,2 --pages 1 --repeats 1 "
+                                   "--json " + json_path.string(),
+                                   out),
+            0)
+      << out;
+  std::ifstream in(json_path);
+  const nlohmann::json j = nlohmann::json::parse(in);
+  for (const char* method : {"blendmap", "dpt2"}) {
+    for (const char* mip : {"1", "2"}) {
+      const nlohmann::json& m = j.at("methods").at(method).at(mip);
+      const double direct = m.at("direct").at("psnr_db").get<double>();
+      const double ss2 = m.at("supersample:2").at("psnr_db").get<double>();
+      EXPECT_TRUE(std::isfinite(direct) && direct > 10.0) << method << " mip " << mip;
+      EXPECT_GT(ss2, direct) << method << " mip " << mip;  // supersampling gets closer to the filtered truth
+      EXPECT_DOUBLE_EQ(m.at("direct").at("cost_vs_direct").get<double>(), 1.0);
+    }
+    EXPECT_TRUE(j.at("methods").at(method).at("2").contains("supersample:4"));
+    EXPECT_FALSE(j.at("methods").at(method).at("1").contains("supersample:4"));  // capped at 2^mip
+  }
+  // The SVG beside the JSON: two panels, three strategies in each (direct, 2 and 4), and the
+  // 35 dB target line.
+  std::ifstream svg_in(dir / "mips.svg");
+  const std::string svg((std::istreambuf_iterator<char>(svg_in)), {});
+  ASSERT_FALSE(svg.empty());
+  EXPECT_EQ(svg.rfind("<svg ", 0), 0u);
+  EXPECT_NE(svg.find("</svg>"), std::string::npos);
+  EXPECT_EQ(count(svg, "class=\"panel\""), 2u);
+  EXPECT_EQ(count(svg, "class=\"series\""), 6u);
+  EXPECT_EQ(count(svg, "data-name=\"supersample:4\""), 2u);
+  EXPECT_NE(svg.find(">blendmap<"), std::string::npos);
+  EXPECT_NE(svg.find(">dpt2<"), std::string::npos);
+  EXPECT_NE(svg.find("35 dB target"), std::string::npos);
+  fs::remove_all(dir);
+}
+
+TEST(BenchMipsCli, BadFlagsNameTheFlagAndWriteNothing) {
+  const fs::path dir = tvt::test::fresh_test_dir("tvt_bench_mips_bad");
+  const std::string scene = tvt::test::write_small_default_scene(dir);
+  const std::string json_path = (dir / "m.json").string();
+  const std::pair<std::string, std::string> cases[] = {
+      {"--method nope", "--method"},
+      {"--method blendmap,bogus", "--method"},
+      {"--mips 0", "--mips"},
+      {"--mips 7", "--mips"},
+      {"--pages 0", "--pages"},
+      {"--repeats 0", "--repeats"},
+      {"--svg " + (dir / "missing" / "x.svg").string(), "--svg"},
+  };
+  for (const auto& [flags, field] : cases) {
+    std::string out;
+    EXPECT_NE(tvt::test::run_terravt(dir, "bench mips --scene " + scene + " --mips 1 --pages 1 --repeats 1 " + flags +
+                                              " --json " + json_path,
+                                     out),
+              0)
+        << flags;
+    EXPECT_NE(out.find(field), std::string::npos) << flags << ": " << out;
+    EXPECT_FALSE(fs::exists(json_path)) << flags;
+  }
+  fs::remove_all(dir);
+}
