@@ -1,5 +1,6 @@
 // The built-in default scene: five generated materials over an fBm terrain, one of each
-// composition mode family. The same text is in docs/default-scene.json (a test keeps the two
+// composition mode family, hex-tiling on the four whose tiling would show (the FBPB cobbles
+// break their repetition by their own feature choice). The same text is in docs/default-scene.json (a test keeps the two
 // identical), so users can copy it as a starting point.
 #include "compose/scene.h"
 
@@ -20,6 +21,7 @@ constexpr std::string_view k_default_scene = R"json({
       "name": "sand",
       "albedo": {"generator": "sand", "resolution": 256},
       "period_texels": 512,
+      "hex": true,
       "mode": "blendmap",
       "weight": "remainder"
     },
@@ -27,6 +29,7 @@ constexpr std::string_view k_default_scene = R"json({
       "name": "grass",
       "albedo": {"generator": "grass", "resolution": 256},
       "period_texels": 384,
+      "hex": true,
       "mode": "dpt",
       "weight": {"rule": {"height": [0.30, 0.75], "height_fade": 0.08, "slope_deg": [0, 24], "slope_fade_deg": 6,
                           "noise": {"amplitude": 0.35, "frequency": 24}}},
@@ -42,6 +45,7 @@ constexpr std::string_view k_default_scene = R"json({
       "name": "mud",
       "albedo": {"generator": "mud", "resolution": 256},
       "period_texels": 448,
+      "hex": true,
       "mode": "dpt",
       "weight": {"rule": {"height": [0, 0.32], "height_fade": 0.06, "slope_deg": [0, 14], "slope_fade_deg": 4,
                           "noise": {"amplitude": 0.3, "frequency": 20}}},
@@ -55,6 +59,7 @@ constexpr std::string_view k_default_scene = R"json({
       "name": "rock",
       "albedo": {"generator": "rock", "resolution": 256},
       "period_texels": 640,
+      "hex": true,
       "mode": "blendmap",
       "weight": {"rule": {"height": [0, 1], "height_fade": 0, "slope_deg": [26, 90], "slope_fade_deg": 8,
                           "noise": {"amplitude": 0.25, "frequency": 32}}}

@@ -404,7 +404,7 @@ Luminance rock_luminance(std::optional<HexDesc> hex) {
   d.materials[0].albedo.generator = "rock";
   d.materials[0].albedo.resolution = 64;
   d.materials[0].period_texels = 64;
-  if (hex) d.materials[0].hex = *hex;
+  d.materials[0].hex = hex.value_or(HexDesc{});  // off unless given (the default scene has it on)
   d.vt.log2_size = 12;
   auto assets = load_scene_assets(d);
   EXPECT_TRUE(assets.ok()) << (assets.ok() ? "" : assets.error().message);
@@ -479,6 +479,7 @@ TEST(HexTiling, KeepsTheMeanAndPreservesContrastUnlessToldNot) {
 TEST(HexTiling, PerMaterialAndNeverOnFbpbLayers) {
   SceneDesc d = default_scene();
   d.vt.log2_size = 12;
+  for (MaterialDesc& m : d.materials) m.hex = HexDesc{};
   d.materials[1].hex = HexDesc{true, 40.0};
   auto assets = load_scene_assets(d);
   ASSERT_TRUE(assets.ok()) << assets.error().message;
@@ -504,6 +505,7 @@ TEST(HexTiling, PerMaterialAndNeverOnFbpbLayers) {
   // Off, the scene composes exactly as it did before the mode existed.
   SceneDesc plain = default_scene();
   plain.vt.log2_size = 12;
+  for (MaterialDesc& m : plain.materials) m.hex = HexDesc{};
   auto plain_assets = load_scene_assets(plain);
   ASSERT_TRUE(plain_assets.ok());
   EXPECT_EQ(compose_page_reference(pack(plain_assets.value()), {0, 3, 5}).value(),

@@ -128,6 +128,14 @@ TEST(DefaultScene, HasTheDocumentedContent) {
   EXPECT_DOUBLE_EQ(sand.period_texels, 512.0);
   EXPECT_EQ(sand.mode, Mode::BlendMap);
   EXPECT_EQ(sand.weight.kind, WeightDesc::Kind::Remainder);
+  // Hex-tiling on every material but the FBPB cobbles, with the defaults.
+  for (size_t n = 0; n < 4; ++n) {
+    EXPECT_TRUE(s.materials[n].hex.enabled) << n;
+    EXPECT_EQ(s.materials[n].hex.edge, 0.0) << n;
+    EXPECT_EQ(s.materials[n].hex.sharpness, 7.0) << n;
+    EXPECT_EQ(s.materials[n].hex.preserve, 1.0) << n;
+  }
+  EXPECT_FALSE(s.materials[4].hex.enabled);
   EXPECT_FALSE(sand.has_fbpb);
   EXPECT_TRUE(sand.dpt.layers.empty());
 
@@ -772,7 +780,9 @@ TEST_F(SceneTest, HexTilingIsOffUnlessAskedAndRoundTrips) {
   EXPECT_TRUE(again->materials[1].hex.enabled);
   EXPECT_EQ(again->materials[2].hex.edge, 96.0);
   // A scene without hex-tiling serialises without the field (its identity is unchanged).
-  EXPECT_EQ(scene_to_json(default_scene()).find("\"hex\""), std::string::npos);
+  const Result<SceneDesc> none = parse(full_scene_json());
+  ASSERT_TRUE(none.ok());
+  EXPECT_EQ(scene_to_json(none.value()).find("\"hex\""), std::string::npos);
 }
 
 TEST_F(SceneTest, DptModesNeedALayer) {
