@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <vector>
 
 #include "compose/image.h"
 
@@ -42,13 +43,35 @@ TEST(ComposeCli, WritesSixLabelledPanelsOnTheCpu) {
   fs::remove_all(d);
 }
 
+// --hex overrides the scene's per-material choice: the default scene has hex-tiling on but for
+// its FBPB cobbles, which never take it, so with fbpb+dpt2 "scene" and "on" compose the same
+// panels; "off" composes the plainly tiled textures.
+TEST(ComposeCli, HexOverrideTurnsTheAntiRepetitionModeOnAndOff) {
+  const fs::path d = temp_dir("hex");
+  std::vector<std::vector<uint8_t>> sheets;
+  for (const char* hex : {"scene", "on", "off"}) {
+    const fs::path out = d / (std::string("sheet-") + hex + ".png");
+    ASSERT_EQ(run(std::string("compose --device cpu --size 32 --mip 0 --methods fbpb+dpt2 --hex ") + hex + " --out " +
+                  out.string()),
+              0)
+        << hex;
+    auto img = tvt::read_image_rgba8(out.string());
+    ASSERT_TRUE(img.ok()) << img.error().message;
+    sheets.push_back(img->texels);
+  }
+  EXPECT_EQ(sheets[0], sheets[1]);
+  EXPECT_NE(sheets[1], sheets[2]);
+  fs::remove_all(d);
+}
+
 TEST(ComposeCli, BadFlagsExitWithUsageErrorAndWriteNothing) {
   const fs::path d = temp_dir("bad");
   const std::string out = " --out " + (d / "x.png").string();
   EXPECT_EQ(run("compose --device tpu" + out), 2);
   for (const std::string args : {"compose --methods linear,nope", "compose --mip 99",
                                   "compose --region 1,2,3", "compose --region -5,0,16,16", "compose --mip-strategy supersample:3",
-                                  "compose --size 2", "compose --scene /does/not/exist.json", "compose --panels /no/such/dir"})
+                                  "compose --size 2", "compose --scene /does/not/exist.json", "compose --panels /no/such/dir",
+                                  "compose --hex maybe"})
     EXPECT_EQ(run(args + " --device cpu" + out), 2) << args;
   EXPECT_TRUE(fs::is_empty(d));
   fs::remove_all(d);

@@ -104,6 +104,19 @@ MipStrategy parsed_mip_strategy(const std::string& text) {
   return s ? s.value() : MipStrategy{};  // the option's check refused anything else
 }
 
+void add_hex_option(CLI::App& app, std::string& text) {
+  app.add_option("--hex", text,
+                 "Hex-tiling, the anti-repetition mode: scene (as each material says), on (every material but FBPB "
+                 "layers above the base) or off")
+      ->check(CLI::IsMember({"scene", "on", "off"}))
+      ->capture_default_str();
+}
+
+void apply_hex_option(SceneAssets& assets, const std::string& text) {
+  if (text == "scene") return;
+  for (MaterialDesc& m : assets.desc.materials) m.hex.enabled = text == "on";
+}
+
 std::optional<std::string> not_a_regular_file(const std::string& path) {
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0) return path + ": " + (errno == ENOENT || errno == ENOTDIR ? "file not found" : fileio::errno_text(errno));

@@ -52,6 +52,12 @@ CLI::Validator regular_file();
 void add_mip_strategy_option(CLI::App& app, std::string& text);
 // The strategy of a value add_mip_strategy_option() accepted.
 MipStrategy parsed_mip_strategy(const std::string& text);
+// --hex scene|on|off: hex-tiling (the anti-repetition mode) as each material of the scene
+// says, on every material (its scene parameters, else the defaults), or off everywhere.
+void add_hex_option(CLI::App& app, std::string& text);
+// Applies a value add_hex_option() accepted to the loaded scene, before anything is packed; a
+// store baked or compared this way records it in its scene identity.
+void apply_hex_option(SceneAssets& assets, const std::string& text);
 
 // Why `path` cannot be read as a regular input file ("is a directory", "is a FIFO", ...),
 // or nullopt when it can be. Follows symbolic links.

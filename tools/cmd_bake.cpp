@@ -26,6 +26,7 @@ struct BakeArgs {
   std::string out;
   std::string method = "fbpb+dpt2";
   std::string mip_strategy = "direct";
+  std::string hex = "scene";
   std::string gpu_name;
   std::string shard = "0/1";
   std::string dict = "none";     // none | auto | a dictionary file
@@ -109,6 +110,7 @@ int run_bake(const BakeArgs& a) {
 
   auto assets = load_scene_and_assets(a.scene);
   if (!assets) return fail(cmd, assets.error().message, 2);
+  apply_hex_option(assets.value(), a.hex);
   const VtConfig& vt = assets->desc.vt;
   BakeRegion region;
   // Out-of-range values are refused, not clamped: --mips 0,99 would silently bake every mip.
@@ -213,6 +215,7 @@ const CommandRegistrar k_register{
       app.add_option("--scene", a->scene, "Scene JSON file (default: the built-in scene)")->check(regular_file());
       app.add_option("--method", a->method, "Transition method")->capture_default_str();
       add_mip_strategy_option(app, a->mip_strategy);
+      add_hex_option(app, a->hex);
       app.add_option("--region", a->region, "x,y,width,height in level-0 texels (default: whole VT)")->delimiter(',');
       app.add_option("--mips", a->mips, "lo,hi: mip range (default: all)")->delimiter(',');
       app.add_option("--pyramid", a->pyramid,

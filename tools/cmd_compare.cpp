@@ -36,6 +36,7 @@ struct CompareArgs {
   std::string scene;
   std::string method = "fbpb+dpt2";
   std::string mip_strategy = "direct";
+  std::string hex = "scene";
   std::string out = "out/compare";
   std::string camera;  // camera path file (default: the built-in flythrough)
   std::string store;
@@ -255,6 +256,7 @@ int run_compare(const CompareArgs& a) {
   // Inputs first: a bad scene or camera file leaves no output folder behind.
   auto assets = load_scene_and_assets(a.scene);
   if (!assets) return fail(cmd, assets.error().message, 2);
+  apply_hex_option(assets.value(), a.hex);
   auto camera = choose_camera(a.camera, assets.value());
   if (!camera) return fail(cmd, camera.error().message, 2);
   // Timings compare producers, not first-use loading: read every material up front.
@@ -468,6 +470,7 @@ const CommandRegistrar k_register{
       app.add_option("--scene", a->scene, "Scene JSON file (default: the built-in scene)")->check(regular_file());
       app.add_option("--method", a->method, "Transition method")->capture_default_str();
       add_mip_strategy_option(app, a->mip_strategy);
+      add_hex_option(app, a->hex);
       app.add_option("--out", a->out, "Folder for the store, compare.json and disk_vs_v.svg")->capture_default_str();
       app.add_option("--store", a->store, "Use this store instead of baking the pages the path needs")->check(regular_file());
       app.add_option("--camera", a->camera, "Camera path file (docs/renderer.md; default: the built-in flythrough)");

@@ -29,6 +29,7 @@ struct ComposeArgs {
   int size = 512;
   uint32_t mip = 0;
   std::string mip_strategy = "direct";
+  std::string hex = "scene";
   int columns = 3;
 };
 
@@ -59,6 +60,7 @@ int run_compose(const ComposeArgs& a) {
   const auto t0 = std::chrono::steady_clock::now();
   auto assets = load_scene_and_assets(a.scene);
   if (!assets) return fail(cmd, assets.error().message, 2);
+  apply_hex_option(assets.value(), a.hex);
   const VtConfig& vt = assets->desc.vt;
   if (a.mip >= vt.mip_count())
     return fail(cmd, "--mip: must be below " + std::to_string(vt.mip_count()) + " for this scene, got " + std::to_string(a.mip), 2);
@@ -164,6 +166,7 @@ const CommandRegistrar k_register{
       app.add_option("--region", a->region, "x,y,width,height in texels of the mip (default: auto)")->delimiter(',');
       app.add_option("--size", a->size, "Edge of the automatic region in texels")->check(CLI::Range(16, 4096))->capture_default_str();
       add_mip_strategy_option(app, a->mip_strategy);
+      add_hex_option(app, a->hex);
       app.add_option("--columns", a->columns, "Panels per row")->check(CLI::Range(1, 16))->capture_default_str();
       return [a] { return run_compose(*a); };
     }};

@@ -33,6 +33,7 @@ struct RenderArgs {
   std::string out = "out/render";
   std::string method = "fbpb+dpt2";
   std::string mip_strategy = "direct";
+  std::string hex = "scene";
   std::string gpu_name;
   std::string format = "png";
   std::string source = "procedural";
@@ -217,6 +218,7 @@ int run_render(const RenderArgs& a) {
   // Inputs first: a bad scene or a missing device leaves no output folder behind.
   auto assets = load_scene_and_assets(a.scene);
   if (!assets) return fail(cmd, assets.error().message, 2);
+  apply_hex_option(assets.value(), a.hex);
   // A store of another scene, method or VT geometry is as unusable as one that cannot be opened.
   if (store) {
     const uint64_t wanted =
@@ -446,6 +448,7 @@ const CommandRegistrar k_register{
       app.add_option("--fps", a->fps, "Camera path frames per second")->capture_default_str();
       app.add_option("--method", a->method, "Transition method")->capture_default_str();
       add_mip_strategy_option(app, a->mip_strategy);
+      add_hex_option(app, a->hex);
       app.add_option("--cache-slots", a->cache_slots, "Physical cache size in pages")->capture_default_str();
       app.add_option("--page-budget", a->page_budget, "Pages composed per frame at most")->capture_default_str();
       app.add_option("--feedback-divisor", a->feedback_divisor, "N: one feedback texel per N x N pixels")->capture_default_str();
