@@ -54,16 +54,11 @@ void Context::run_commands(const std::function<void(VkCommandBuffer)>& record) {
 double Context::run_commands_timed(const std::function<void(VkCommandBuffer)>& record) {
   const auto t0 = std::chrono::steady_clock::now();
   const auto wall = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
-  uint32_t families = 0;
-  fn_.vkGetPhysicalDeviceQueueFamilyProperties(physical_, &families, nullptr);
-  std::vector<VkQueueFamilyProperties> props(families);
-  fn_.vkGetPhysicalDeviceQueueFamilyProperties(physical_, &families, props.data());
-  const uint32_t valid_bits = queue_family_ < families ? props[queue_family_].timestampValidBits : 0;
   VkQueryPool pool = VK_NULL_HANDLE;
   auto qci = init<VkQueryPoolCreateInfo>(VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO);
   qci.queryType = VK_QUERY_TYPE_TIMESTAMP;
   qci.queryCount = 2;
-  if (deferring_ || valid_bits == 0 || properties_.limits.timestampPeriod <= 0.f ||
+  if (deferring_ || timestamp_mask_ == 0 ||
       fn_.vkCreateQueryPool(device_, &qci, alloc_, &pool) != VK_SUCCESS) {
     run_commands(record);
     return wall();
@@ -78,8 +73,7 @@ double Context::run_commands_timed(const std::function<void(VkCommandBuffer)>& r
   uint64_t ticks[2] = {};
   if (status() && fn_.vkGetQueryPoolResults(device_, pool, 0, 2, sizeof(ticks), ticks, sizeof(uint64_t),
                                             VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT) == VK_SUCCESS) {
-    const uint64_t mask = valid_bits >= 64 ? ~0ull : (1ull << valid_bits) - 1;
-    seconds = double((ticks[1] - ticks[0]) & mask) * double(properties_.limits.timestampPeriod) * 1e-9;
+    seconds = double((ticks[1] - ticks[0]) & timestamp_mask_) * double(properties_.limits.timestampPeriod) * 1e-9;
   }
   fn_.vkDestroyQueryPool(device_, pool, alloc_);
   return seconds;

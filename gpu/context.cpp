@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <utility>
+#include <vector>
 
 namespace tvt::vk {
 
@@ -27,6 +28,13 @@ Result<std::unique_ptr<Context>> Context::adopt(const terravt::DeviceHandles& ha
   p2.pNext = &p11;
   ctx->fn_.vkGetPhysicalDeviceProperties2(ctx->physical_, &p2);
   ctx->max_allocation_bytes_ = p11.maxMemoryAllocationSize;
+  uint32_t families = 0;
+  ctx->fn_.vkGetPhysicalDeviceQueueFamilyProperties(ctx->physical_, &families, nullptr);
+  std::vector<VkQueueFamilyProperties> family_props(families);
+  ctx->fn_.vkGetPhysicalDeviceQueueFamilyProperties(ctx->physical_, &families, family_props.data());
+  const uint32_t valid_bits = ctx->queue_family_ < families ? family_props[ctx->queue_family_].timestampValidBits : 0;
+  if (valid_bits > 0 && ctx->properties_.limits.timestampPeriod > 0.f)
+    ctx->timestamp_mask_ = valid_bits >= 64 ? ~0ull : (1ull << valid_bits) - 1;
 
   auto pci = init<VkCommandPoolCreateInfo>(VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO);
   pci.flags = VK_COMMAND_POOL_CREATE_TRANSIENT_BIT;

@@ -97,6 +97,9 @@ class Context {
   uint32_t queue_family() const { return queue_family_; }
   const VkAllocationCallbacks* allocation_callbacks() const { return alloc_; }
   const VkPhysicalDeviceProperties& properties() const { return properties_; }
+  // Mask of the bits a timestamp of the context's queue counts (timestampValidBits), 0 where
+  // the queue family does not count them or the device gives no period: then no timestamps.
+  uint64_t timestamp_mask() const { return timestamp_mask_; }
   std::string device_name() const { return properties_.deviceName; }
   const DeviceFeatures& features() const { return features_; }  // what is enabled on device()
   // Sends a diagnostic to the client's log callback (dropped when there is none).
@@ -204,6 +207,7 @@ class Context {
   std::vector<std::function<void(VkCommandBuffer)>> deferred_;
   std::vector<Buffer> deferred_staging_;
   VkPhysicalDeviceProperties properties_{};
+  uint64_t timestamp_mask_ = 0;
   VkPhysicalDeviceMemoryProperties memory_properties_{};
   VkDeviceSize max_allocation_bytes_ = 0;  // VkPhysicalDeviceVulkan11Properties::maxMemoryAllocationSize
   DeviceFeatures features_{};

@@ -23,14 +23,9 @@ Result<std::unique_ptr<FrameRing>> FrameRing::create(vk::Context& context, uint3
 
   r->pool_ = vk::create_command_pool(context);
 
-  // Timestamps: only when the queue family counts them (timestampValidBits > 0).
-  uint32_t families = 0;
-  context.fn().vkGetPhysicalDeviceQueueFamilyProperties(context.physical_device(), &families, nullptr);
-  std::vector<VkQueueFamilyProperties> props(families);
-  context.fn().vkGetPhysicalDeviceQueueFamilyProperties(context.physical_device(), &families, props.data());
-  const uint32_t valid_bits = props.at(context.queue_family()).timestampValidBits;
-  if (valid_bits > 0 && context.properties().limits.timestampPeriod > 0.f) {
-    r->timestamp_mask_ = valid_bits >= 64 ? ~0ull : (1ull << valid_bits) - 1;
+  // Timestamps: only when the queue family counts them.
+  if (context.timestamp_mask() != 0) {
+    r->timestamp_mask_ = context.timestamp_mask();
     r->ns_per_tick_ = double(context.properties().limits.timestampPeriod);
     VkQueryPoolCreateInfo qci{};
     qci.sType = VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO;

@@ -87,12 +87,10 @@ vec4 hex_sample(int n, int64_t gx, float fx, int64_t gy, float fy, float lod) {
     // Terrains up to 2^29 material texels a side (the default scene at V = 2^24 is 2^23): the
     // same floor divisions in 32 bits, several times cheaper than 64-bit ones on GPUs.
     const int gy32 = int(gy), h32 = int(H), l32 = int(L);
-    int j32 = gy32 / h32;
-    if (gy32 - j32 * h32 < 0) j32 -= 1;
+    const int j32 = tvt_floor_div32(gy32, h32);
     b = (float(gy32 - j32 * h32) + fy) / float(h32);
     const int xs32 = int(gx) - j32 * (l32 / 2);
-    int i32 = xs32 / l32;
-    if (xs32 - i32 * l32 < 0) i32 -= 1;
+    const int i32 = tvt_floor_div32(xs32, l32);
     a = (float(xs32 - i32 * l32) + fx) / float(l32) - 0.5 * b;
     i = int64_t(i32);
     j = int64_t(j32);

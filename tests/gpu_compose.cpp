@@ -33,6 +33,14 @@ const SceneAssets& default_assets(uint32_t log2_vt) {
   return it->second;
 }
 
+// Three level-0 pages where most materials are in transition, and one mip-3 page.
+std::vector<PageId> transition_pages(const SceneAssets& assets) {
+  std::vector<PageId> pages = pages_covering(assets.desc.vt, interesting_region(assets, 0, 256, 256));
+  pages.resize(std::min<size_t>(pages.size(), 3));
+  pages.push_back(PageId{3, 5, 9});
+  return pages;
+}
+
 struct Agreement {
   size_t channels = 0, within_one = 0;
   int max_diff = 0;
@@ -78,10 +86,7 @@ class GpuCompose : public GpuTest {
 
 TEST_F(GpuCompose, MatchesReferenceForEveryMethodOnTheDefaultScene) {
   const SceneAssets& assets = default_assets(16);
-  const Region region = interesting_region(assets, 0, 256, 256);
-  std::vector<PageId> pages = pages_covering(assets.desc.vt, region);
-  pages.resize(std::min<size_t>(pages.size(), 3));
-  pages.push_back(PageId{3, 5, 9});
+  std::vector<PageId> pages = transition_pages(assets);
   for (Method m : k_all_methods) expect_agreement(assets, options_for(m), pages, std::string(to_string(m)));
 }
 
@@ -122,10 +127,7 @@ TEST_F(GpuCompose, MatchesReferenceWithAHundredTexelGreyscaleImageMaterial) {
 // Hex-tiling on every material it applies to (FBPB layers above the base keep their texture).
 TEST_F(GpuCompose, HexTilingMatchesReferenceForEveryMethodAndAtTheFarCornerOf2To24) {
   const SceneAssets& assets = default_assets(16);
-  const Region region = interesting_region(assets, 0, 256, 256);
-  std::vector<PageId> pages = pages_covering(assets.desc.vt, region);
-  pages.resize(std::min<size_t>(pages.size(), 3));
-  pages.push_back(PageId{3, 5, 9});
+  std::vector<PageId> pages = transition_pages(assets);
   pages.push_back(PageId{7, 1, 0});  // hex tiles far smaller than a texel's footprint
   for (Method m : k_all_methods) {
     ComposeOptions o = options_for(m);

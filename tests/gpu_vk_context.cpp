@@ -108,75 +108,73 @@ TEST_F(GpuTest, CreatesAVulkan13ContextWithValidationAndReportsTheDevice) {
   EXPECT_EQ(ctx().features().dynamic_rendering, f13.dynamicRendering == VK_TRUE);
 }
 
-TEST_F(GpuTest, ComputeFillRoundTripsEveryValue) {
-  const uint32_t count = 100003;  // not a multiple of the workgroup size
-  const vk::ComputeBinding bindings[] = {{0, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}};
-  vk::ComputePipeline pipeline =
-      ctx().create_compute_pipeline(shaders::test_fill_comp(), bindings, sizeof(TvtTestFillPush));
-  vk::Buffer values = ctx().create_buffer(VkDeviceSize(count) * 4,
-                                          VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, false);
-  vk::DescriptorSet set = ctx().allocate_descriptor_set(pipeline);
-  set.write_buffer(0, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, values);
+namespace {
 
-  const TvtTestFillPush push{count, 0x9e3779b9u};
-  ctx().run_commands([&](VkCommandBuffer cmd) {
+// test_fill.comp over `count` values: values[i] = i * i ^ xor_value (mod 2^32).
+struct FillJob {
+  FillJob(vk::Context& c, uint32_t n, uint32_t xor_value)
+      : count(n), push{n, xor_value}, pipeline(c.create_compute_pipeline(shaders::test_fill_comp(), bindings, sizeof(push))),
+        values(c.create_buffer(VkDeviceSize(n) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, false)),
+        set(c.allocate_descriptor_set(pipeline)) {
+    set.write_buffer(0, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, values);
+  }
+  // Records the fill `dispatches` times over.
+  void record(VkCommandBuffer cmd, uint32_t dispatches = 1) const {
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline.handle());
     const VkDescriptorSet s = set.handle();
     vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline.layout(), 0, 1, &s, 0, nullptr);
     vkCmdPushConstants(cmd, pipeline.layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
-    vkCmdDispatch(cmd, (count + gpu::TVT_TEST_FILL_GROUP - 1) / gpu::TVT_TEST_FILL_GROUP, 1, 1);
-  });
-  const std::vector<unsigned char> bytes = read_back(ctx(), values);
-  ASSERT_EQ(bytes.size(), size_t(count) * 4);
-  size_t wrong = 0;
-  for (uint32_t i = 0; i < count; ++i) {
-    uint32_t got = 0;
-    std::memcpy(&got, bytes.data() + size_t(i) * 4, 4);
-    const uint32_t want = (i * i) ^ push.xor_value;  // mod 2^32, as in GLSL
-    if (got != want && ++wrong <= 5) ADD_FAILURE() << "values[" << i << "] = " << got << ", want " << want;
+    for (uint32_t r = 0; r < dispatches; ++r)
+      vkCmdDispatch(cmd, (count + gpu::TVT_TEST_FILL_GROUP - 1) / gpu::TVT_TEST_FILL_GROUP, 1, 1);
   }
-  EXPECT_EQ(wrong, 0u);
+  // Reads the values back; the number that differ from i * i ^ xor_value (the first few are
+  // reported as failures).
+  size_t wrong_values(vk::Context& c) const {
+    const std::vector<unsigned char> bytes = read_back(c, values);
+    EXPECT_EQ(bytes.size(), size_t(count) * 4);
+    if (bytes.size() != size_t(count) * 4) return count;
+    size_t wrong = 0;
+    for (uint32_t i = 0; i < count; ++i) {
+      uint32_t got = 0;
+      std::memcpy(&got, bytes.data() + size_t(i) * 4, 4);
+      const uint32_t want = (i * i) ^ push.xor_value;  // mod 2^32, as in GLSL
+      if (got != want && ++wrong <= 5) ADD_FAILURE() << "values[" << i << "] = " << got << ", want " << want;
+    }
+    return wrong;
+  }
+
+  static constexpr vk::ComputeBinding bindings[] = {{0, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}};
+  uint32_t count;
+  TvtTestFillPush push;
+  vk::ComputePipeline pipeline;
+  vk::Buffer values;
+  vk::DescriptorSet set;
+};
+
+}  // namespace
+
+TEST_F(GpuTest, ComputeFillRoundTripsEveryValue) {
+  const FillJob fill(ctx(), 100003, 0x9e3779b9u);  // not a multiple of the workgroup size
+  ctx().run_commands([&](VkCommandBuffer cmd) { fill.record(cmd); });
+  EXPECT_EQ(fill.wrong_values(ctx()), 0u);
 }
 
 // Benchmarks time device work with run_commands_timed(): timestamps around the commands where
 // the queue counts them. It must do exactly what run_commands() does, without a validation
 // message (the query reset is recorded in the same command buffer), and more work takes longer.
 TEST_F(GpuTest, TimedCommandsDoTheSameWorkAndMoreWorkTakesLonger) {
-  const uint32_t count = 1u << 20;
-  const vk::ComputeBinding bindings[] = {{0, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}};
-  vk::ComputePipeline pipeline =
-      ctx().create_compute_pipeline(shaders::test_fill_comp(), bindings, sizeof(TvtTestFillPush));
-  vk::Buffer values = ctx().create_buffer(VkDeviceSize(count) * 4,
-                                          VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, false);
-  vk::DescriptorSet set = ctx().allocate_descriptor_set(pipeline);
-  set.write_buffer(0, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, values);
-  const TvtTestFillPush push{count, 0x5a5a5a5au};
-  const auto fill = [&](VkCommandBuffer cmd, uint32_t repeats) {
-    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline.handle());
-    const VkDescriptorSet s = set.handle();
-    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline.layout(), 0, 1, &s, 0, nullptr);
-    vkCmdPushConstants(cmd, pipeline.layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
-    for (uint32_t r = 0; r < repeats; ++r)
-      vkCmdDispatch(cmd, (count + gpu::TVT_TEST_FILL_GROUP - 1) / gpu::TVT_TEST_FILL_GROUP, 1, 1);
-  };
+  const FillJob fill(ctx(), 1u << 20, 0x5a5a5a5au);
   // Fastest of five: other jobs share the machine and can stretch any single run; 64 times the
   // work must then still time well above the single dispatch (asked: 4 times).
   double one = 1e300, many = 1e300;
   for (int round = 0; round < 5; ++round) {
-    one = std::min(one, ctx().run_commands_timed([&](VkCommandBuffer cmd) { fill(cmd, 1); }));
-    many = std::min(many, ctx().run_commands_timed([&](VkCommandBuffer cmd) { fill(cmd, 64); }));
+    one = std::min(one, ctx().run_commands_timed([&](VkCommandBuffer cmd) { fill.record(cmd, 1); }));
+    many = std::min(many, ctx().run_commands_timed([&](VkCommandBuffer cmd) { fill.record(cmd, 64); }));
   }
   ASSERT_TRUE(ctx().status());
   EXPECT_GT(one, 0.0);
   EXPECT_GT(many, 4.0 * one) << "64 dispatches timed " << many << " s, one " << one << " s";
-  const std::vector<unsigned char> bytes = read_back(ctx(), values);
-  size_t wrong = 0;
-  for (uint32_t i = 0; i < count; ++i) {
-    uint32_t got = 0;
-    std::memcpy(&got, bytes.data() + size_t(i) * 4, 4);
-    if (got != ((i * i) ^ push.xor_value)) ++wrong;
-  }
-  EXPECT_EQ(wrong, 0u);
+  EXPECT_EQ(fill.wrong_values(ctx()), 0u);
 }
 
 TEST_F(GpuTest, StorageImageArrayRoundTripsEveryTexelOfEveryLayer) {

@@ -194,9 +194,13 @@ int run_render(const RenderArgs& a) {
   if (a.strict && *source != VtSource::hybrid) return fail(cmd, "--strict: only used with --source hybrid", 2);
   if (a.loader_threads < 1 || a.loader_threads > 64) return fail(cmd, "--loader-threads: must be between 1 and 64", 2);
   if (a.staging < 1 || a.staging > 4096) return fail(cmd, "--staging: must be between 1 and 4096", 2);
-  const auto feedback = a.feedback == "auto" ? std::optional<FeedbackMode>(FeedbackMode::None) : feedback_mode_from_string(a.feedback);
-  if (!feedback || (*feedback == FeedbackMode::None && a.feedback != "auto"))
-    return fail(cmd, "--feedback: auto, attachment, main or separate, got '" + a.feedback + "'", 2);
+  // Unset for auto: the device decides, once there is one.
+  std::optional<FeedbackMode> feedback;
+  if (a.feedback != "auto") {
+    feedback = feedback_mode_from_string(a.feedback);
+    if (!feedback || *feedback == FeedbackMode::None)
+      return fail(cmd, "--feedback: auto, attachment, main or separate, got '" + a.feedback + "'", 2);
+  }
   const auto mip_filter = mip_filter_from_string(a.vt_filter);
   if (!mip_filter) return fail(cmd, "--vt-filter: trilinear, bilinear, brilinear or brilinear:W with W in [0, 1], got '" + a.vt_filter + "'", 2);
   std::shared_ptr<const PageStoreReader> store;
@@ -297,7 +301,7 @@ int run_render(const RenderArgs& a) {
   fo.vt.loader.threads = a.loader_threads;
   fo.vt.loader.staging_slots = a.staging;
   fo.vt.sync_loads = a.sync_loads;
-  fo.feedback_mode = *feedback != FeedbackMode::None ? *feedback : default_feedback_mode(ctx.value()->properties().deviceType);
+  fo.feedback_mode = feedback.value_or(default_feedback_mode(g.properties().deviceType));
   fo.max_anisotropy = a.anisotropy;
   fo.mip_filter = *mip_filter;
   fo.frames_in_flight = a.frames_in_flight;

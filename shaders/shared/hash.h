@@ -45,6 +45,12 @@ TVT_FN int64_t tvt_floor_div(int64_t a, int64_t b) {
   return q;
 }
 TVT_FN int64_t tvt_floor_mod(int64_t a, int64_t b) { return a - tvt_floor_div(a, b) * b; }
+// The same in 32 bits, for operands known to fit (several times cheaper on GPUs).
+TVT_FN int tvt_floor_div32(int a, int b) {
+  int q = a / b;
+  if (a - q * b < 0) q -= 1;
+  return q;
+}
 
 TVT_END
 #endif
