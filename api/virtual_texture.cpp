@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "api/client_producer.h"
+#include "api/tool_access.h"
 #include "compose/packed_scene.h"
 #include "compose/scene.h"
 #include "compose/scene_assets.h"
@@ -67,7 +68,8 @@ std::optional<tvt::VtSource> internal_source(PageSource s) {
 struct VirtualTexture::Impl {
   VirtualTextureDesc desc;
   std::unique_ptr<tvt::vk::Context> context;  // declared first: destroyed last
-  tvt::SceneAssets assets;
+  tvt::SceneAssets owned_assets;              // create(): the scene it loaded
+  const tvt::SceneAssets* assets = nullptr;   // &owned_assets, or a tool's (api/tool_access.h)
   std::unique_ptr<tvt::VtSystem> vt;
   std::vector<tvt::PageFeedback> feedback;
   std::optional<uint64_t> last_begun, last_completed;
@@ -95,20 +97,16 @@ struct VirtualTexture::Impl {
 VirtualTexture::VirtualTexture(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 VirtualTexture::~VirtualTexture() = default;
 
-Result<std::unique_ptr<VirtualTexture>> VirtualTexture::create(const DeviceHandles& device,
-                                                               const VirtualTextureDesc& desc) {
-  const auto source = internal_source(desc.source);
-  if (!source) return invalid("VirtualTextureDesc::source: not a PageSource value");
-  const auto method = tvt::method_from_string(desc.method);
-  if (!method) return invalid("VirtualTextureDesc::method: unknown method '" + desc.method + "'");
-  const auto strategy = tvt::mip_strategy_from_string(desc.mip_strategy);
-  if (!strategy) return invalid("VirtualTextureDesc::mip_strategy: " + strategy.error().message);
-  if (desc.source != PageSource::composed && desc.store_file.empty() && !desc.producer)
-    return invalid("VirtualTextureDesc::store_file: a stored or hybrid source needs a store");
-  if (desc.consumer_stages == 0) return invalid("VirtualTextureDesc::consumer_stages: name at least one stage");
+namespace detail {
 
-  auto impl = std::make_unique<Impl>();
-  impl->desc = desc;
+tvt::VtSystem& Access::runtime(VirtualTexture& vt) { return *vt.impl_->vt; }
+
+// The one path from a device and a scene to a VirtualTexture: create() (a scene file and
+// VirtualTextureDesc) and create_virtual_texture() (terravt's tools) both end here.
+// impl->desc and impl->assets are set; `o` holds the runtime's options.
+Result<std::unique_ptr<VirtualTexture>> Access::make(const DeviceHandles& device, std::unique_ptr<VirtualTexture::Impl> impl,
+                                                     tvt::Method method, tvt::MipStrategy strategy, tvt::VtSystemOptions o) {
+  const VirtualTextureDesc& desc = impl->desc;
   // The legacy stage bits have the same values as their VK_PIPELINE_STAGE_2_* counterparts.
   const VkPipelineStageFlags2 consumers = desc.consumer_stages;
   const VkPipelineStageFlags2 producers = VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_TRANSFER_BIT;
@@ -131,30 +129,11 @@ Result<std::unique_ptr<VirtualTexture>> VirtualTexture::create(const DeviceHandl
   // Nothing is submitted on the client's queue: set-up is recorded by the first record().
   impl->context->defer_setup();
 
-  auto scene = desc.scene_file.empty() ? tvt::Result<tvt::SceneDesc>(tvt::default_scene())
-                                       : tvt::load_scene_file(desc.scene_file);
-  if (!scene) return invalid(scene.error().message);
-  auto assets = tvt::load_scene_assets(scene.value());
-  if (!assets)  // running out of memory stays out_of_memory; anything else is the input's fault
-    return assets.error().kind == ErrorKind::out_of_memory ? assets.error() : invalid(assets.error().message);
-  impl->assets = std::move(assets.value());
-  auto packed = tvt::pack_scene(impl->assets, tvt::options_for(*method, strategy.value()));
+  auto packed = tvt::pack_scene(*impl->assets, tvt::options_for(method, strategy));
   if (!packed) return invalid(packed.error().message);
-
-  tvt::VtSystemOptions o;
-  o.cache_slots = desc.cache_slots;
-  o.page_budget = desc.page_budget;
-  o.window_pages = desc.window_pages;
+  if (o.store && o.scene_hash == 0)
+    o.scene_hash = tvt::store_scene_identity(impl->assets->desc, method, strategy, o.store->desc().pyramid);
   o.frames_in_flight = desc.frames_in_flight;
-  o.source = *source;
-  if (desc.producer) {
-    o.producer = std::make_shared<detail::ClientProducer>(desc.producer, desc.page_budget);
-  } else if (desc.source != PageSource::composed) {
-    auto store = tvt::PageStoreReader::open(desc.store_file);
-    if (!store) return Error{ErrorKind::io, store.error().message};
-    o.store = std::move(store.value());
-    o.scene_hash = tvt::store_scene_identity(impl->assets.desc, *method, strategy.value(), o.store->desc().pyramid);
-  }
   auto vt = tvt::VtSystem::create(*impl->context, packed.value(), o);
   if (!vt) return as_input_error(vt.error());
   impl->vt = std::move(vt.value());
@@ -171,7 +150,7 @@ Result<std::unique_ptr<VirtualTexture>> VirtualTexture::create(const DeviceHandl
     impl->compactor = std::move(compactor.value());
   }
   if (desc.producer) {
-    const tvt::VtConfig& c = impl->assets.desc.vt;
+    const tvt::VtConfig& c = impl->assets->desc.vt;
     const tvt::vk::Image& cache = impl->vt->cache();
     ProducerTarget t;
     t.cache = cache.handle();
@@ -190,8 +169,69 @@ Result<std::unique_ptr<VirtualTexture>> VirtualTexture::create(const DeviceHandl
   return std::unique_ptr<VirtualTexture>(new VirtualTexture(std::move(impl)));
 }
 
+Result<std::unique_ptr<VirtualTexture>> create_virtual_texture(const DeviceHandles& device, const ToolVirtualTexture& td) {
+  return Access::make_for_tool(device, td);
+}
+
+Result<std::unique_ptr<VirtualTexture>> Access::make_for_tool(const DeviceHandles& device, const ToolVirtualTexture& td) {
+  if (!td.assets) return invalid("create_virtual_texture(): no scene assets");
+  if (td.consumer_stages == 0) return invalid("create_virtual_texture(): consumer_stages: name at least one stage");
+  auto impl = std::make_unique<VirtualTexture::Impl>();
+  VirtualTextureDesc& d = impl->desc;  // the public subset, as the runtime options set it
+  d.cache_slots = td.runtime.cache_slots;
+  d.page_budget = td.runtime.page_budget;
+  d.window_pages = td.runtime.window_pages;
+  d.frames_in_flight = td.runtime.frames_in_flight;
+  d.feedback_texels = td.feedback_texels;
+  d.consumer_stages = td.consumer_stages;
+  impl->assets = td.assets;
+  return make(device, std::move(impl), td.method, td.mip_strategy, td.runtime);
+}
+
+}  // namespace detail
+
+Result<std::unique_ptr<VirtualTexture>> VirtualTexture::create(const DeviceHandles& device,
+                                                               const VirtualTextureDesc& desc) {
+  const auto source = internal_source(desc.source);
+  if (!source) return invalid("VirtualTextureDesc::source: not a PageSource value");
+  const auto method = tvt::method_from_string(desc.method);
+  if (!method) return invalid("VirtualTextureDesc::method: unknown method '" + desc.method + "'");
+  const auto strategy = tvt::mip_strategy_from_string(desc.mip_strategy);
+  if (!strategy) return invalid("VirtualTextureDesc::mip_strategy: " + strategy.error().message);
+  if (desc.source != PageSource::composed && desc.store_file.empty() && !desc.producer)
+    return invalid("VirtualTextureDesc::store_file: a stored or hybrid source needs a store");
+  if (desc.consumer_stages == 0) return invalid("VirtualTextureDesc::consumer_stages: name at least one stage");
+  // The device first: a device terravt cannot run on is the first thing to hear about.
+  if (auto st = check_device(device); !st) return st.error();
+
+  auto impl = std::make_unique<Impl>();
+  impl->desc = desc;
+  auto scene = desc.scene_file.empty() ? tvt::Result<tvt::SceneDesc>(tvt::default_scene())
+                                       : tvt::load_scene_file(desc.scene_file);
+  if (!scene) return invalid(scene.error().message);
+  auto assets = tvt::load_scene_assets(scene.value());
+  if (!assets)  // running out of memory stays out_of_memory; anything else is the input's fault
+    return assets.error().kind == ErrorKind::out_of_memory ? assets.error() : invalid(assets.error().message);
+  impl->owned_assets = std::move(assets.value());
+  impl->assets = &impl->owned_assets;
+
+  tvt::VtSystemOptions o;
+  o.cache_slots = desc.cache_slots;
+  o.page_budget = desc.page_budget;
+  o.window_pages = desc.window_pages;
+  o.source = *source;
+  if (desc.producer) {
+    o.producer = std::make_shared<detail::ClientProducer>(desc.producer, desc.page_budget);
+  } else if (desc.source != PageSource::composed) {
+    auto store = tvt::PageStoreReader::open(desc.store_file);
+    if (!store) return Error{ErrorKind::io, store.error().message};
+    o.store = std::move(store.value());
+  }
+  return detail::Access::make(device, std::move(impl), *method, strategy.value(), std::move(o));
+}
+
 VirtualTextureInfo VirtualTexture::info() const {
-  const tvt::VtConfig& c = impl_->assets.desc.vt;
+  const tvt::VtConfig& c = impl_->assets->desc.vt;
   return VirtualTextureInfo{c.log2_size, c.page_texels, c.border_texels, c.mip_count(), impl_->desc.cache_slots};
 }
 
@@ -236,7 +276,7 @@ Status VirtualTexture::begin_frame(uint64_t frame, std::optional<uint64_t> compl
     return misuse("begin_frame(" + f + "): " + std::to_string(open) + " earlier frame(s) not completed, and at most " +
                   std::to_string(m.desc.frames_in_flight) + " may be in flight (VirtualTextureDesc::frames_in_flight)");
 
-  const tvt::VtConfig& c = m.assets.desc.vt;
+  const tvt::VtConfig& c = m.assets->desc.vt;
   m.feedback.clear();
   for (size_t i = 0; i < requests.size(); ++i) {
     const PageRequest& r = requests[i];

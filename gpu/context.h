@@ -46,6 +46,8 @@ class DeviceOwner {
   virtual bool validation() const = 0;
   virtual std::vector<std::string> messages() const = 0;
   virtual void clear_messages() = 0;
+  // The handles the Context adopted (enabled_features points into the owner).
+  virtual terravt::DeviceHandles handles() const = 0;
 };
 
 // For Context::create(): which device to make (see gpu/device_setup.h).
@@ -108,6 +110,11 @@ class Context {
   // Made by create() (terravt's own device, which it may wait on), not adopt() (a client's,
   // which terravt never waits on).
   bool owns_device() const { return owned_ != nullptr; }
+  // The handles of a device made by create(), to hand to terravt's public API
+  // (terravt::VirtualTexture::create) exactly as an engine hands in its own: terravt's tools
+  // run the VT on their device through that one path. An adopted device's handles are the
+  // client's: invalid_argument. Defined in gpu/device_setup.cpp, with create().
+  Result<terravt::DeviceHandles> device_handles() const;
 
   // Validation: only a Context made by create() with validation on records messages.
   bool validation_enabled() const;

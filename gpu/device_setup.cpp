@@ -316,6 +316,12 @@ Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) 
   return ctx;
 }
 
+Result<terravt::DeviceHandles> Context::device_handles() const {
+  if (!owned_)
+    return Error{ErrorKind::invalid_argument, "Context::device_handles(): the device was adopted; its handles are the client's"};
+  return owned_->handles();
+}
+
 OwnedDevice::~OwnedDevice() {
   if (device_) {
     vkDeviceWaitIdle(device_);

@@ -33,7 +33,7 @@ class OwnedDevice final : public DeviceOwner {
   OwnedDevice& operator=(const OwnedDevice&) = delete;
 
   // The handles to adopt (enabled_features points into this object).
-  terravt::DeviceHandles handles() const;
+  terravt::DeviceHandles handles() const override;
   bool validation() const override { return messenger_ != VK_NULL_HANDLE; }
   // Every validation (and other debug-utils warning/error) message since creation or since
   // the last clear_messages().

@@ -106,6 +106,16 @@ VkCommandBuffer FrameRing::begin(uint64_t frame) {
   return s.cmd;
 }
 
+void FrameRing::wait_completed(uint64_t frame) {
+  if (completed(frame) || !context_->status()) return;
+  const uint32_t index = uint32_t(frame % slots_.size());
+  Slot& s = slots_[index];
+  if (!s.frame || *s.frame != frame || (recording_ && *recording_ == index)) return;  // not submitted
+  if (!TVT_VK_OK(*context_, context_->fn().vkWaitForFences(context_->device(), 1, &s.fence, VK_TRUE, k_fence_timeout_ns)))
+    return;
+  if (auto t = collect(s, index)) completed_.push_back(*t);
+}
+
 void FrameRing::mark() {
   TVT_CHECK(recording_);
   Slot& s = slots_[*recording_];

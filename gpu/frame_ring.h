@@ -62,6 +62,12 @@ class FrameRing {
   // `frame` was submitted and has completed, as far as the ring has seen (begin() of frame f
   // knows f - K has; take_completed() polls the newer ones). Never waits.
   bool completed(uint64_t frame) const { return completed_through_ && frame <= *completed_through_; }
+  // The newest frame known complete that way (std::nullopt before the first).
+  std::optional<uint64_t> completed_through() const { return completed_through_; }
+  // Waits until submitted frame `frame` has completed (returns at once when it has, or was
+  // never submitted); its timing joins take_completed()'s. A failed wait is latched on the
+  // context.
+  void wait_completed(uint64_t frame);
   // Waits for every submitted frame.
   void wait_idle();
 

@@ -188,8 +188,8 @@ Result<std::unique_ptr<TerrainRenderer>> TerrainRenderer::create(vk::Context& co
     }
     if (feedback != FeedbackMode::None) {
       r->feedback_.divisor = v.feedback_divisor;
-      r->feedback_.width = (options.width + v.feedback_divisor - 1) / v.feedback_divisor;
-      r->feedback_.height = (options.height + v.feedback_divisor - 1) / v.feedback_divisor;
+      r->feedback_.width = feedback_extent(options.width, v.feedback_divisor);
+      r->feedback_.height = feedback_extent(options.height, v.feedback_divisor);
       r->feedback_buffer_ = context.create_buffer(VkDeviceSize(r->feedback_.width) * r->feedback_.height * 8,
                                                   VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT |
                                                       VK_BUFFER_USAGE_TRANSFER_SRC_BIT,

@@ -177,6 +177,11 @@ class TerrainRenderer {
   // compute stage (and transfers) after record().
   const vk::Buffer& feedback_buffer() const { return feedback_buffer_; }
   uint32_t feedback_width() const { return feedback_.width; }
+  // Feedback texels along a side of `pixels` pixels: one per divisor x divisor block (0 for
+  // divisor 0, which create() refuses).
+  static uint32_t feedback_extent(uint32_t pixels, uint32_t divisor) {
+    return divisor == 0 ? 0 : uint32_t((uint64_t(pixels) + divisor - 1) / divisor);
+  }
   uint32_t feedback_height() const { return feedback_.height; }
   // The frame constants record() would use for `camera` (exposed for tests).
   gpu::TvtTerrainFrame frame_constants(const Camera& camera) const;

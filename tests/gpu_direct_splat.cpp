@@ -6,7 +6,7 @@
 
 #include "compose/packed_scene.h"
 #include "compose/scene.h"
-#include "render/flythrough.h"
+#include "app/flythrough.h"
 #include "render/terrain_renderer.h"
 #include "support/gpu_test.h"
 

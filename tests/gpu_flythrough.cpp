@@ -5,7 +5,7 @@
 
 #include "compose/image_diff.h"
 #include "compose/scene.h"
-#include "render/flythrough.h"
+#include "app/flythrough.h"
 #include "support/gpu_test.h"
 
 using namespace tvt;

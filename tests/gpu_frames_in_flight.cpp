@@ -10,7 +10,7 @@
 
 #include "compose/packed_scene.h"
 #include "compose/scene.h"
-#include "render/flythrough.h"
+#include "app/flythrough.h"
 #include "gpu/frame_ring.h"
 #include "render/vt_info.h"
 #include "render/vt_system.h"

@@ -13,10 +13,10 @@
 #include "compose/material_culling.h"
 #include "compose/packed_scene.h"
 #include "compose/scene.h"
-#include "render/flythrough.h"
+#include "app/flythrough.h"
 #include "render/gpu_composer.h"
 #include "render/terrain_renderer.h"
-#include "render/vt_frame_driver.h"
+#include "app/vt_frame_driver.h"
 #include "render/vt_system.h"
 #include "compose/reference_compositor.h"
 #include "support/file_scene.h"
@@ -330,20 +330,17 @@ TEST_F(GpuLazyMaterials, ADirectSplatRendererReportsAMaterialThatCannotBeLoaded)
 TEST_F(GpuLazyMaterials, TheFrameDriverReportsAMaterialThatCannotBeLoaded) {
   const SceneWithDeletedMaterial broken("tvt_gpu_lazy_driver");
   const SceneAssets& assets = broken.assets;
-  auto packed = pack_scene(assets, {});
-  ASSERT_TRUE(packed.ok());
   VtSystemOptions vo;
   vo.cache_slots = 64;
-  auto vt = VtSystem::create(ctx(), packed.value(), vo);
-  ASSERT_TRUE(vt.ok()) << vt.error().message;
+  auto vt = make_tool_vt(ctx(), assets, Method::FbpbDpt, vo, vt_feedback_texels(64, 64, 4));
+  ASSERT_TRUE(vt);
   TerrainRendererOptions o;
   o.width = 64;
   o.height = 64;
-  VtSystem& v = *vt.value();
-  o.vt = TerrainVtInputs{&v.info_buffer(), &v.entry_buffer(), &v.cache(), v.sampler(), 4};
+  o.vt = terrain_vt_inputs(*vt, 4, FeedbackMode::Attachment);
   auto writer = TerrainRenderer::create(ctx(), assets, o);
   ASSERT_TRUE(writer.ok()) << writer.error().message;
-  auto driver = VtFrameDriver::create(ctx(), v, *writer.value());
+  auto driver = VtFrameDriver::create(ctx(), *vt, *writer.value());
   ASSERT_TRUE(driver.ok());
   const Camera cam = flythrough_path(assets, writer.value()->mesh()).camera_at(1.0);
   auto c = driver.value()->converge(cam, 10);

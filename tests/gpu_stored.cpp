@@ -11,7 +11,7 @@
 #include "compose/image_diff.h"
 #include "compose/scene.h"
 #include "compose/scene_identity.h"
-#include "render/flythrough.h"
+#include "app/flythrough.h"
 #include "render/gpu_composer.h"
 #include "streaming/bake.h"
 #include "streaming/page_store.h"

@@ -11,10 +11,10 @@
 #include "compose/image_diff.h"
 #include "compose/packed_scene.h"
 #include "compose/scene.h"
-#include "render/flythrough.h"
+#include "app/flythrough.h"
 #include "render/plain_texture.h"
 #include "render/terrain_renderer.h"
-#include "render/vt_frame_driver.h"
+#include "app/vt_frame_driver.h"
 #include "shaders/shared/feedback_types.h"
 #include "support/gpu_test.h"
 
@@ -73,28 +73,26 @@ const SceneAssets& default_assets() {
   return a;
 }
 
-TerrainVtInputs vt_inputs(const VtSystem& v, uint32_t divisor, FeedbackMode mode, uint32_t aniso = 1) {
-  TerrainVtInputs i{&v.info_buffer(), &v.entry_buffer(), &v.cache(), v.sampler(), divisor};
-  i.feedback = mode;
-  i.max_anisotropy = aniso;
-  return i;
+TerrainVtInputs vt_inputs(terravt::VirtualTexture& v, uint32_t divisor, FeedbackMode mode, uint32_t aniso = 1) {
+  return terrain_vt_inputs(v, divisor, mode, aniso);
 }
 
-// The feedback tests' VT: the default scene in blend-map form, 256 cache pages, 64 per frame.
+// The feedback tests' VT: the default scene in blend-map form, 256 cache pages, 64 per frame,
+// compacting the feedback of a 320 x 180 pass at N = 4. Frame 0 has run (nothing requested), so
+// its set-up is done and passes may sample it; a driver continues with frame 1.
 struct FeedbackVt {
-  PackedScene packed;
-  std::unique_ptr<VtSystem> vt;  // after `packed`: destroyed first
+  std::unique_ptr<terravt::VirtualTexture> vt;
 };
 void make_feedback_vt(vk::Context& g, FeedbackVt& out) {
-  auto packed = pack_scene(default_assets(), options_for(Method::BlendMap));
-  ASSERT_TRUE(packed.ok());
-  out.packed = std::move(packed.value());
   VtSystemOptions vo;
   vo.cache_slots = 256;
   vo.page_budget = 64;
-  auto vt = VtSystem::create(g, out.packed, vo);
-  ASSERT_TRUE(vt.ok()) << vt.error().message;
-  out.vt = std::move(vt.value());
+  out.vt = make_tool_vt(g, default_assets(), Method::BlendMap, vo, vt_feedback_texels(320, 180, 4));
+  ASSERT_TRUE(out.vt);
+  ASSERT_TRUE(out.vt->begin_frame(0, std::nullopt, 0, 0, {}).ok());
+  terravt::Status recorded = terravt::Ok{};
+  g.run_commands([&](VkCommandBuffer cmd) { recorded = out.vt->record(cmd); });
+  ASSERT_TRUE(recorded.ok()) << recorded.error().message;
 }
 
 using TerrainSamplingTest = GpuTest;
@@ -152,15 +150,13 @@ TEST_F(TerrainSamplingTest, PlainTextureLevelZeroIsTheComposedPagesAndTheChainIs
 // most log2(4) = 2 finer), the feedback asks for them, and distant texture keeps more detail.
 TEST_F(TerrainSamplingTest, AnisotropicSamplingReadsFinerMipsAlongGrazingViewsAndKeepsDetail) {
   const SceneAssets& assets = default_assets();
-  auto packed = pack_scene(assets, options_for(Method::BlendMap));
-  ASSERT_TRUE(packed.ok());
   VtSystemOptions vo;
   vo.cache_slots = 512;
   vo.page_budget = 64;
-  auto vt = VtSystem::create(ctx(), packed.value(), vo);
-  ASSERT_TRUE(vt.ok());
-  VtSystem& v = *vt.value();
   const uint32_t w = 192, h = 108;
+  auto vt = make_tool_vt(ctx(), assets, Method::BlendMap, vo, vt_feedback_texels(w, h, 2));
+  ASSERT_TRUE(vt);
+  terravt::VirtualTexture& v = *vt;
   TerrainRendererOptions o;
   o.width = w;
   o.height = h;
@@ -228,7 +224,7 @@ TEST_F(TerrainSamplingTest, SeparateFeedbackPassReportsThePagesTheMainPassReport
   const SceneAssets& assets = default_assets();
   FeedbackVt fv;
   ASSERT_NO_FATAL_FAILURE(make_feedback_vt(ctx(), fv));
-  VtSystem& v = *fv.vt;
+  terravt::VirtualTexture& v = *fv.vt;
   TerrainRendererOptions o;
   o.width = 320;
   o.height = 180;
@@ -283,12 +279,12 @@ TEST_F(TerrainSamplingTest, SeparateFeedbackPassReportsThePagesTheMainPassReport
   EXPECT_LE(double(other), 0.005 * double(texels));
 
   // And it drives residency: a static view converges with only the separate pass reporting.
-  auto driver = VtFrameDriver::create(ctx(), v, *separate.value());
+  auto driver = VtFrameDriver::create(ctx(), v, *separate.value(), 1);
   ASSERT_TRUE(driver.ok());
   const auto c = driver.value()->converge(path.camera_at(path.start_time() + 4.0), 60);
   ASSERT_TRUE(c.ok()) << c.error().message;
   EXPECT_TRUE(c->converged) << c->frames << " frames";
-  EXPECT_GT(v.stats().residency.resident, 20u);
+  EXPECT_GT(terravt::detail::runtime(v).stats().residency.resident, 20u);
 }
 
 // Attachment feedback (the default) reports exactly what main-pass stores report: the same
@@ -299,7 +295,7 @@ TEST_F(TerrainSamplingTest, AttachmentFeedbackEqualsMainPassStoresTexelForTexel)
   const SceneAssets& assets = default_assets();
   FeedbackVt fv;
   ASSERT_NO_FATAL_FAILURE(make_feedback_vt(ctx(), fv));
-  VtSystem& v = *fv.vt;
+  terravt::VirtualTexture& v = *fv.vt;
   TerrainRendererOptions o;
   o.width = 251;  // 32 blocks of 8, the last one 3 pixels wide
   o.height = 139;
@@ -341,14 +337,14 @@ TEST_F(TerrainSamplingTest, ExtremeCoordinatesAtTheFarCornerOfTwoPow24) {
   desc.vt.log2_size = 24;
   auto assets = load_scene_assets(desc);
   ASSERT_TRUE(assets.ok()) << assets.error().message;
-  auto packed = pack_scene(assets.value(), options_for(Method::FbpbDpt));
-  ASSERT_TRUE(packed.ok());
   VtSystemOptions vo;
   vo.cache_slots = 384;
   vo.page_budget = 64;
-  auto vt = VtSystem::create(ctx(), packed.value(), vo);
-  ASSERT_TRUE(vt.ok()) << vt.error().message;
-  VtSystem& v = *vt.value();
+  auto vt = make_tool_vt(ctx(), assets.value(), Method::FbpbDpt, vo, vt_feedback_texels(128, 72, 4));
+  auto packed = pack_scene(assets.value(), options_for(Method::FbpbDpt));  // the direct and plain passes'
+  ASSERT_TRUE(packed.ok());
+  ASSERT_TRUE(vt);
+  terravt::VirtualTexture& v = *vt;
   TerrainRendererOptions o;
   o.width = 128;
   o.height = 72;

@@ -13,9 +13,9 @@
 #include "support/terrain_probe.h"
 #include "compose/packed_scene.h"
 #include "compose/scene.h"
-#include "render/flythrough.h"
+#include "app/flythrough.h"
 #include "render/terrain_renderer.h"
-#include "render/vt_frame_driver.h"
+#include "app/vt_frame_driver.h"
 #include "support/gpu_test.h"
 
 using namespace tvt;
@@ -47,7 +47,7 @@ class GpuVtMatchedLod : public GpuTest {
  protected:
   static constexpr uint32_t w = 256, h = 144;
 
-  // Each call starts from a new, empty VtSystem; the scene is loaded and packed once.
+  // Each call starts from a new, empty VT; the scene is loaded and packed once.
   void converge_and_render(VtMipFilter filter) {
     if (!scene_ready) {
       auto loaded = load_scene_assets(default_scene());
@@ -62,14 +62,13 @@ class GpuVtMatchedLod : public GpuTest {
     VtSystemOptions vo;
     vo.cache_slots = 512;
     vo.page_budget = 64;
-    auto made = VtSystem::create(ctx(), packed, vo);
-    ASSERT_TRUE(made.ok()) << made.error().message;
-    vt = std::move(made.value());
-    VtSystem& v = *vt;
+    vt = make_tool_vt(ctx(), assets, Method::FbpbDpt, vo, vt_feedback_texels(w, h, 2));
+    ASSERT_TRUE(vt);
+    const VtSystem& v = terravt::detail::runtime(*vt);
 
     base.width = w;
     base.height = h;
-    TerrainVtInputs vi{&v.info_buffer(), &v.entry_buffer(), &v.cache(), v.sampler(), 2};
+    TerrainVtInputs vi = terrain_vt_inputs(*vt, 2, FeedbackMode::Attachment);
     vi.mip_filter = filter;
     TerrainRendererOptions writer_o = base;
     writer_o.vt = vi;
@@ -96,7 +95,7 @@ class GpuVtMatchedLod : public GpuTest {
     // A low pass over varied terrain: mips 0 ... 6 on screen, many page borders.
     const CameraPath path = flythrough_path(assets, writer.value()->mesh());
     cam = path.camera_at(path.start_time() + 0.5);
-    auto driver = VtFrameDriver::create(ctx(), v, *writer.value());
+    auto driver = VtFrameDriver::create(ctx(), *vt, *writer.value());
     ASSERT_TRUE(driver.ok()) << driver.error().message;
     const auto conv = driver.value()->converge(cam, 60);
     ASSERT_TRUE(conv.ok()) << conv.error().message;
@@ -113,7 +112,7 @@ class GpuVtMatchedLod : public GpuTest {
   bool scene_ready = false;
   SceneAssets assets;
   PackedScene packed;
-  std::unique_ptr<VtSystem> vt;
+  std::unique_ptr<terravt::VirtualTexture> vt;
   std::unique_ptr<GpuComposer> composer;
   TerrainRendererOptions base, probe_o, direct_o;
   Camera cam;

@@ -1,6 +1,6 @@
 // `terravt bench frame` (see bench_frame.h). Two measurements per method, side by side:
 //
-// 1. Steady state on static poses, interleaved: one VtSystem, converged for each pose (by an
+// 1. Steady state on static poses, interleaved: one VirtualTexture (the public API), converged for each pose (by an
 //    anisotropic writer, whose feedback asks for the finest pages any variant samples), then
 //    every pass renders the pose `rounds` times in turn and keeps its fastest; figures are
 //    medians over the poses, ratios medians of the per-pose ratios. Passes: plain texture,
@@ -9,7 +9,7 @@
 //    anisotropic, direct splatting, untextured, then plain/VT without the detail normal and VT
 //    with the brilinear and bilinear mip filters (plus the image error of the mip filters). Process CPU time
 //    (CPU device) or GPU timestamps around each pass (hardware GPU).
-// 2. The flythrough loop (render/flythrough.h) with each feedback variant: steady frames
+// 2. The flythrough loop (app/flythrough.h) with each feedback variant: steady frames
 //    (nothing composed), all frames (page production included), time-to-sharp after the cut,
 //    feedback CPU time per frame.
 #include "tools/bench_frame.h"
@@ -28,10 +28,10 @@
 #include "compose/image_diff.h"
 #include "compose/packed_scene.h"
 #include "render/feedback_compactor.h"
-#include "render/flythrough.h"
+#include "app/flythrough.h"
 #include "render/plain_texture.h"
 #include "render/terrain_renderer.h"
-#include "render/vt_frame_driver.h"
+#include "app/vt_frame_driver.h"
 #include "tools/cli_common.h"
 #include "vt/page_table.h"
 
@@ -103,12 +103,19 @@ Result<StaticResult> measure_static(vk::Context& g, const SceneAssets& assets, M
                                     const BenchFrameArgs& a) {
   auto packed = pack_scene(assets, options_for(method));
   if (!packed) return packed.error();
-  VtSystemOptions vo;
-  vo.cache_slots = std::max(a.cache_slots, 1024u);  // anisotropic poses want more pages than the loop's cache
-  vo.page_budget = 64;
-  auto vt = VtSystem::create(g, packed.value(), vo);
+  // The VT through the public API on this device, as the flythrough runs it. Its feedback
+  // comes from the converger below (half resolution).
+  auto handles = g.device_handles();
+  if (!handles) return handles.error();
+  terravt::detail::ToolVirtualTexture td;
+  td.assets = &assets;
+  td.method = method;
+  td.runtime.cache_slots = std::max(a.cache_slots, 1024u);  // anisotropic poses want more pages than the loop's cache
+  td.runtime.page_budget = 64;
+  td.feedback_texels = vt_feedback_texels(a.width, a.height, 2);
+  auto vt = terravt::detail::create_virtual_texture(handles.value(), td);
   if (!vt) return vt.error();
-  VtSystem& v = *vt.value();
+  terravt::VirtualTexture& v = *vt.value();
   auto composer = GpuComposer::create(g, packed.value(), 1);
   if (!composer) return composer.error();
 
@@ -117,8 +124,7 @@ Result<StaticResult> measure_static(vk::Context& g, const SceneAssets& assets, M
   base.height = a.height;
   auto vt_pass = [&](FeedbackMode mode, uint32_t aniso, VtMipFilter filter = VtMipFilter::Trilinear) {
     TerrainRendererOptions o = base;
-    o.vt = TerrainVtInputs{&v.info_buffer(), &v.entry_buffer(), &v.cache(), v.sampler(), a.feedback_divisor, mode, aniso,
-                           filter};
+    o.vt = terrain_vt_inputs(v, a.feedback_divisor, mode, aniso, filter);
     return TerrainRenderer::create(g, assets, o);
   };
   std::unique_ptr<TerrainRenderer> passes[kPassCount];
@@ -139,7 +145,7 @@ Result<StaticResult> measure_static(vk::Context& g, const SceneAssets& assets, M
   for (FeedbackMode mode : {FeedbackMode::Attachment, FeedbackMode::None}) {
     TerrainRendererOptions o = base;
     o.lighting.detail_relief_m = 0.0;
-    o.vt = TerrainVtInputs{&v.info_buffer(), &v.entry_buffer(), &v.cache(), v.sampler(), a.feedback_divisor, mode, 1};
+    o.vt = terrain_vt_inputs(v, a.feedback_divisor, mode, 1);
     made.push_back(TerrainRenderer::create(g, assets, o));
   }
   made.push_back(vt_pass(FeedbackMode::Attachment, 1, VtMipFilter::Bilinear));
@@ -153,8 +159,7 @@ Result<StaticResult> measure_static(vk::Context& g, const SceneAssets& assets, M
   // Convergence: an anisotropic writer at 1/2 resolution (every pixel reports within 4 frames);
   // its feedback asks for the finest page any timed pass samples.
   TerrainRendererOptions conv_o = base;
-  conv_o.vt = TerrainVtInputs{&v.info_buffer(), &v.entry_buffer(), &v.cache(), v.sampler(), 2, FeedbackMode::Attachment,
-                              a.anisotropy};
+  conv_o.vt = terrain_vt_inputs(v, 2, FeedbackMode::Attachment, a.anisotropy);
   auto converger = TerrainRenderer::create(g, assets, conv_o);
   if (!converger) return converger.error();
   auto driver = VtFrameDriver::create(g, v, *converger.value());

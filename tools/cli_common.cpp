@@ -17,7 +17,7 @@
 
 #include "json/json_check.h"
 #include "compose/scene.h"
-#include "render/flythrough.h"
+#include "app/flythrough.h"
 #include "streaming/file_io.h"
 
 namespace tvt::cli {

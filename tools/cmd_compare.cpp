@@ -21,7 +21,7 @@
 #include <set>
 
 #include "compose/image_diff.h"
-#include "render/flythrough.h"
+#include "app/flythrough.h"
 #include "streaming/bake.h"
 #include "streaming/page_store.h"
 #include "streaming/pyramid.h"

@@ -16,7 +16,7 @@
 #include "compose/packed_scene.h"
 #include "compose/scene_identity.h"
 #include "terrain/camera_file.h"
-#include "render/flythrough.h"
+#include "app/flythrough.h"
 #include "render/stored_producer.h"
 #include "streaming/file_io.h"
 #include "streaming/page_store.h"

@@ -43,6 +43,10 @@
 
 namespace terravt {
 
+namespace detail {
+struct Access;  // terravt's own tools (not part of the API)
+}
+
 enum class PageSource {
   composed,  // every page composed by terravt's compute shader from the scene's materials
   stored,    // every page read from a baked store (store_file); a missing or bad page falls back to its ancestor
@@ -154,6 +158,7 @@ class TERRAVT_API VirtualTexture {
   const FrameStats& stats() const;
 
  private:
+  friend struct detail::Access;
   struct Impl;
   explicit VirtualTexture(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;

@@ -6,6 +6,7 @@
 
 #include <string>
 
+#include "api/tool_access.h"
 #include "gpu/context.h"
 
 namespace tvt {
@@ -19,6 +20,12 @@ const std::string& shared_gpu_context_error();
 // Adds a test failure listing every message `ctx` recorded, then clears them, so one bad test
 // does not fail the next. Use it for extra contexts a test creates itself.
 void expect_no_validation_messages(vk::Context& ctx);
+
+// A VT on `g`'s device made the way terravt's tools make theirs (the public API through
+// api/tool_access.h): for tests that converge a view with VtFrameDriver. Fails the test (ASSERT)
+// when creation fails; `feedback_texels` is the writer's (vt_feedback_texels()).
+std::unique_ptr<terravt::VirtualTexture> make_tool_vt(vk::Context& g, const SceneAssets& assets, Method method,
+                                                      const VtSystemOptions& options, uint32_t feedback_texels);
 
 // Fixture for GPU tests. SetUp fails the test (GTEST_FAIL, not skip) when there is no usable
 // Vulkan device; TearDown calls expect_no_validation_messages() on the shared context.

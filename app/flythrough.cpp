@@ -1,10 +1,9 @@
-#include "render/flythrough.h"
+#include "app/flythrough.h"
 
 #include <algorithm>
 #include <chrono>
 
-#include "compose/scene_identity.h"
-#include "render/feedback_compactor.h"
+#include "api/tool_access.h"
 #include "gpu/frame_ring.h"
 #include "render/terrain_renderer.h"
 #include "render/vt_debug.h"
@@ -32,35 +31,46 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
   if (o.frames < 1) return make_error("frames: must be at least 1");
   if (!(o.fps > 0.0)) return make_error("fps: must be > 0");
   if (o.feedback_mode == FeedbackMode::None) return make_error("feedback_mode: the loop needs feedback");
-  auto packed = pack_scene(assets, options_for(o.method, o.mip_strategy));
-  if (!packed) return packed.error();
-  VtSystemOptions vto = o.vt;
-  vto.frames_in_flight = o.frames_in_flight;
-  if (vto.store && vto.scene_hash == 0)
-    vto.scene_hash = store_scene_identity(assets.desc, o.method, o.mip_strategy, vto.store->desc().pyramid);
-  auto vt = VtSystem::create(g, packed.value(), vto);
-  if (!vt) return vt.error();
-  VtSystem& v = *vt.value();
+  if (o.feedback_divisor < 1 || o.feedback_divisor > 64)
+    return make_error("feedback_divisor: must be 1 ... 64, got " + std::to_string(o.feedback_divisor));
+  auto handles = g.device_handles();
+  if (!handles) return handles.error();
+  // The terrain pass is created first: its feedback buffer's size is the VT's feedback_texels.
+  // It binds the VT's buffers, so the VT comes first in memory: created below, it is handed
+  // to the renderer through TerrainVtInputs before any frame is recorded.
+  TerrainVtInputs vt_inputs{nullptr, nullptr, nullptr, VK_NULL_HANDLE, o.feedback_divisor, o.feedback_mode,
+                            o.max_anisotropy, o.mip_filter};
+  const uint32_t feedback_texels = TerrainRenderer::feedback_extent(o.width, o.feedback_divisor) *
+                                   TerrainRenderer::feedback_extent(o.height, o.feedback_divisor);
+  // The VT through the public API, on this device, exactly as an engine runs it.
+  terravt::detail::ToolVirtualTexture td;
+  td.assets = &assets;
+  td.method = o.method;
+  td.mip_strategy = o.mip_strategy;
+  td.runtime = o.vt;
+  td.runtime.frames_in_flight = o.frames_in_flight;
+  td.feedback_texels = feedback_texels;
+  // The terrain pass samples in its fragment shader; the separate feedback pass too.
+  td.consumer_stages = VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT;
+  auto made = terravt::detail::create_virtual_texture(handles.value(), td);
+  if (!made) return made.error();
+  terravt::VirtualTexture& vt = *made.value();
+  VtSystem& v = terravt::detail::runtime(vt);  // statistics and debug read-backs only
   v.set_debug_view(o.debug_view);
   TerrainRendererOptions ro;
   ro.width = o.width;
   ro.lighting = o.lighting;
   ro.height = o.height;
-  ro.vt = TerrainVtInputs{&v.info_buffer(), &v.entry_buffer(), &v.cache(), v.sampler(), o.feedback_divisor,
-                          o.feedback_mode, o.max_anisotropy, o.mip_filter};
+  vt_inputs.info = &v.info_buffer();
+  vt_inputs.entries = &v.entry_buffer();
+  vt_inputs.cache = &v.cache();
+  vt_inputs.sampler = v.sampler();
+  ro.vt = vt_inputs;
   auto terrain = TerrainRenderer::create(g, assets, ro);
   if (!terrain) return terrain.error();
   TerrainRenderer& t = *terrain.value();
-  FeedbackCompactor::Options fo;
-  fo.feedback_width = t.feedback_width();
-  fo.feedback_height = t.feedback_height();
-  // One more readback slot than frames in flight: the slot frame f reuses held frame f - K - 1,
-  // complete since begin(f) waited for frame f - K (the compactor's own fence for it signals
-  // right behind the frame's, so a slot is at worst found busy once and that frame goes
-  // without feedback; it never waits).
-  fo.ring_size = o.frames_in_flight + 1;
-  auto compactor = FeedbackCompactor::create(g, fo);
-  if (!compactor) return compactor.error();
+  if (uint64_t(t.feedback_width()) * t.feedback_height() != feedback_texels)
+    return make_error("flythrough: the terrain pass's feedback is not the size the VT was made for");
   auto ring = FrameRing::create(g, o.frames_in_flight);
   if (!ring) return ring.error();
   FrameRing& frames = *ring.value();
@@ -76,7 +86,6 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
 
   FlythroughSummary sum;
   const auto start = std::chrono::steady_clock::now();
-  std::vector<PageFeedback> feedback;
   for (uint32_t f = 0; f < o.frames; ++f) {
     const auto t0 = std::chrono::steady_clock::now();
     FlythroughFrame fr;
@@ -93,38 +102,38 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
       fr.gpu_ms_frame = done.frame;
       if (done.stage_ms.size() == 3) fr.gpu_stage_ms = {done.stage_ms[0], done.stage_ms[1], done.stage_ms[2]};
     }
-    // The newest compacted feedback whose frame has completed (K frames late after begin(f),
-    // newer when the GPU keeps up); never a wait. When none is ready the previous list stands,
-    // so requests keep flowing.
+    // The newest frame known complete: its compacted feedback (typically frames_in_flight
+    // frames late, newer when the GPU keeps up) joins this frame's requests; never a wait.
+    // Deterministic: exactly the previous frame's, waiting for it.
     const auto w0 = std::chrono::steady_clock::now();
-    for (uint64_t late = 1; late <= o.frames_in_flight + 1 && late <= f; ++late)
-      if (auto r = o.deterministic ? compactor.value()->read_blocking(f - late)
-                                   : compactor.value()->try_read(f - late, frames.completed(f - late))) {
-        feedback.clear();
-        for (const auto& [page, count] : r->pages) feedback.push_back(PageFeedback{page, count});
-        fr.feedback_pages = r->pages.size();
-        fr.feedback_frames_late = late;
-        break;
-      }
-    if (o.deterministic) fr.wait_ms += ms_between(w0, std::chrono::steady_clock::now());
+    if (o.deterministic && f > 0) {
+      frames.wait_completed(f - 1);
+      if (auto st = g.status(); !st) return st.error();
+      fr.wait_ms += ms_between(w0, std::chrono::steady_clock::now());
+    }
     const auto w1 = std::chrono::steady_clock::now();
-    const uint32_t cx = uint32_t(std::clamp(fr.camera.position_m.x / mpt, 0.0, vt_max));
-    const uint32_t cy = uint32_t(std::clamp(fr.camera.position_m.y / mpt, 0.0, vt_max));
-    v.begin_frame(f + 1, cx, cy, feedback);
+    const int64_t cx = int64_t(std::clamp(fr.camera.position_m.x / mpt, 0.0, vt_max));
+    const int64_t cy = int64_t(std::clamp(fr.camera.position_m.y / mpt, 0.0, vt_max));
+    if (auto st = vt.begin_frame(f, frames.completed_through(), cx, cy, {}); !st) return st.error();
     fr.residency_ms = ms_between(o.deterministic ? w1 : w0, std::chrono::steady_clock::now());
-    const Status recorded = v.record(cmd);  // a complete frame even when composition failed
+    if (vt.stats().feedback_pages > 0) {
+      fr.feedback_pages = vt.stats().feedback_pages;
+      fr.feedback_frames_late = f - vt.stats().feedback_frame;
+    }
+    const Status recorded = vt.record(cmd);  // a complete frame even when composition failed
     frames.mark();  // GPU stage "vt": material uploads, composition, stored-page copies, table scatter
     t.record(cmd, fr.camera);
     frames.mark();  // "terrain": the terrain pass (and the separate feedback pass)
     // The compaction rides in the frame's command buffer, so its result is ready when the frame
-    // is: feedback is typically frames_in_flight frames late, at most one more.
-    const VkFence compaction = compactor.value()->record(cmd, t.feedback_buffer(), f);
-    frames.submit(compaction);  // the last stage: "compaction"
-    v.end_frame();
+    // is.
+    const Status compacted = vt.record_feedback(cmd, t.feedback_buffer().handle());
+    frames.submit();  // the last stage: "compaction"
     if (auto st = g.status(); !st) return st.error();  // before anything of this frame is reported
+    if (!compacted) return compacted.error();
     if (!recorded) {
-      // A material could not be loaded on first use: stop before this frame is reported or
-      // written anywhere; the error names the scene file, the field and the image file.
+      // A device failure, or a material that could not be loaded on first use: stop before
+      // this frame is reported or written anywhere; the error names the scene file, the field
+      // and the image file.
       frames.wait_idle();
       g.wait_idle();
       return recorded.error();

@@ -1,55 +1,53 @@
 // Blocking VT frame driver (see vt_frame_driver.h).
-#include "render/vt_frame_driver.h"
+#include "app/vt_frame_driver.h"
 
 #include <algorithm>
-#include <vector>
+#include <optional>
 
 namespace tvt {
 
-Result<std::unique_ptr<VtFrameDriver>> VtFrameDriver::create(vk::Context& context, VtSystem& vt, TerrainRenderer& writer) {
+TerrainVtInputs terrain_vt_inputs(terravt::VirtualTexture& vt, uint32_t feedback_divisor, FeedbackMode mode,
+                                  uint32_t max_anisotropy, VtMipFilter mip_filter) {
+  const VtSystem& v = terravt::detail::runtime(vt);
+  return TerrainVtInputs{&v.info_buffer(), &v.entry_buffer(), &v.cache(), v.sampler(), feedback_divisor, mode,
+                         max_anisotropy, mip_filter};
+}
+
+Result<std::unique_ptr<VtFrameDriver>> VtFrameDriver::create(vk::Context& context, terravt::VirtualTexture& vt,
+                                                             TerrainRenderer& writer, uint64_t first_frame) {
   const auto& vo = writer.options().vt;
   if (!vo || vo->feedback == FeedbackMode::None)
     return make_error("vt frame driver: the writer must sample the VT and write feedback");
-  FeedbackCompactor::Options fo;
-  fo.feedback_width = writer.feedback_width();
-  fo.feedback_height = writer.feedback_height();
-  fo.ring_size = 2;
-  auto compactor = FeedbackCompactor::create(context, fo);
-  if (!compactor) return compactor.error();
   std::unique_ptr<VtFrameDriver> d(new VtFrameDriver());
   d->context_ = &context;
   d->vt_ = &vt;
   d->writer_ = &writer;
-  d->compactor_ = std::move(compactor.value());
+  d->frame_ = d->first_frame_ = first_frame;
   return d;
 }
 
 Result<VtFrameStats> VtFrameDriver::frame(const Camera& camera) {
-  std::vector<PageFeedback> feedback;
-  if (frame_ > 0)
-    if (auto r = compactor_->read_blocking(frame_ - 1)) {
-      for (const auto& [page, count] : r->pages) feedback.push_back(PageFeedback{page, count});
-      last_feedback_pages_ = r->pages.size();
-    }
   const TerrainMesh& mesh = writer_->mesh();
   const double mpt = mesh.metres_per_texel(), vt_max = double(mesh.vt_texels() - 1);
-  const uint32_t cx = uint32_t(std::clamp(camera.position_m.x / mpt, 0.0, vt_max));
-  const uint32_t cy = uint32_t(std::clamp(camera.position_m.y / mpt, 0.0, vt_max));
-  vt_->begin_frame(frame_ + 1, cx, cy, feedback);
-  Status recorded = Ok{};
+  const int64_t cx = int64_t(std::clamp(camera.position_m.x / mpt, 0.0, vt_max));
+  const int64_t cy = int64_t(std::clamp(camera.position_m.y / mpt, 0.0, vt_max));
+  // Every earlier frame has completed (run_commands waited): the previous one's feedback joins.
+  const std::optional<uint64_t> completed = frame_ > 0 ? std::optional<uint64_t>(frame_ - 1) : std::nullopt;
+  if (auto st = vt_->begin_frame(frame_, completed, cx, cy, {}); !st) return st.error();
+  if (frame_ > first_frame_) last_feedback_pages_ = vt_->stats().feedback_pages;
+  Status recorded = Ok{}, compacted = Ok{};
   context_->run_commands([&](VkCommandBuffer cmd) {
     recorded = vt_->record(cmd);  // a complete frame even when composition failed
     writer_->record(cmd, camera);
+    compacted = vt_->record_feedback(cmd, writer_->feedback_buffer().handle());
   });
-  const bool submitted = compactor_->submit(writer_->feedback_buffer(), frame_);
   if (auto st = context_->status(); !st) return st.error();  // a failed Vulkan call (latched)
-  TVT_CHECK(submitted);  // the ring slot was read: free
-  vt_->end_frame();
   ++frame_;
+  if (!compacted) return compacted.error();
   // A material that could not be loaded on first use: the frame finished, the error names the
   // scene file, the field and the image file.
   if (!recorded) return recorded.error();
-  return vt_->stats();
+  return terravt::detail::runtime(*vt_).stats();
 }
 
 Result<VtConvergence> VtFrameDriver::converge(const Camera& camera, uint32_t max_frames, uint32_t quiet_frames) {
@@ -64,7 +62,7 @@ Result<VtConvergence> VtFrameDriver::converge(const Camera& camera, uint32_t max
     if (!s) return s.error();
     ++c.frames;
     // Frame 1 has no feedback yet: it cannot count as quiet.
-    quiet = (frame_ > 1 && s->residency.requested == 0 && s->composed == 0) ? quiet + 1 : 0;
+    quiet = (frame_ > first_frame_ + 1 && s->residency.requested == 0 && s->composed == 0) ? quiet + 1 : 0;
   }
   c.converged = quiet >= quiet_frames;
   return c;

@@ -1,7 +1,9 @@
 // The VT frame loop (the main job of `terravt render`), as a library function so tests and
 // benchmarks drive exactly what the CLI runs: camera path -> terrain pass sampling the VT and
 // writing feedback -> GPU feedback compaction -> residency -> compute composition into the
-// cache -> GPU page-table scatter.
+// cache -> GPU page-table scatter. The VT runs through the public API (terravt::VirtualTexture
+// on the device's handles: begin_frame, record, record_feedback), as in an engine; the loop
+// is terravt's own client of it, with its own frame ring, terrain pass and feedback buffer.
 #pragma once
 #include <array>
 #include <cstdint>
