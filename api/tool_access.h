@@ -35,6 +35,7 @@ Result<std::unique_ptr<VirtualTexture>> create_virtual_texture(const DeviceHandl
 
 struct Access {
   static tvt::VtSystem& runtime(VirtualTexture& vt);
+  static uint32_t feedback_texels(const VirtualTexture& vt);  // VirtualTextureDesc::feedback_texels
   static Result<std::unique_ptr<VirtualTexture>> make_for_tool(const DeviceHandles& device, const ToolVirtualTexture& desc);
   // The shared end of create() and create_virtual_texture() (api/virtual_texture.cpp).
   static Result<std::unique_ptr<VirtualTexture>> make(const DeviceHandles& device, std::unique_ptr<VirtualTexture::Impl> impl,

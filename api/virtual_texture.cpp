@@ -82,6 +82,8 @@ struct VirtualTexture::Impl {
   // compaction number, consecutive even when frame numbers skip.
   std::deque<std::pair<uint64_t, uint64_t>> compacted;
   uint64_t compactions = 0;
+  std::vector<tvt::PageFeedback> gpu_feedback;  // the newest compaction read, and its frame
+  std::optional<uint64_t> gpu_feedback_frame;
   bool feedback_recorded = false;      // record_feedback() ran for the last frame begun
   bool busy = false;  // inside a call: a producer's callback calling back in is refused
   std::optional<uint64_t> setup_frame;  // the frame that recorded the set-up; its staging lives until it completed
@@ -100,6 +102,7 @@ VirtualTexture::~VirtualTexture() = default;
 namespace detail {
 
 tvt::VtSystem& Access::runtime(VirtualTexture& vt) { return *vt.impl_->vt; }
+uint32_t Access::feedback_texels(const VirtualTexture& vt) { return vt.impl_->desc.feedback_texels; }
 
 // The one path from a device and a scene to a VirtualTexture: create() (a scene file and
 // VirtualTextureDesc) and create_virtual_texture() (terravt's tools) both end here.
@@ -290,20 +293,20 @@ Status VirtualTexture::begin_frame(uint64_t frame, std::optional<uint64_t> compl
   const auto clamp_texel = [&](int64_t v) {
     return uint32_t(std::clamp<int64_t>(v, 0, int64_t(c.size_texels() - 1)));
   };
-  // The newest completed frame's GPU feedback joins the requests; older ones are stale.
-  m.stats.feedback_pages = 0;
-  std::optional<tvt::FeedbackResult> gpu;
-  uint64_t gpu_frame = 0;
+  // The newest completed frame's GPU feedback joins the requests; older ones are stale. With
+  // no newer one completed, the newest read stands (the view has not told us otherwise).
   while (done && !m.compacted.empty() && m.compacted.front().first <= *done) {
-    gpu = m.compactor->try_read(m.compacted.front().second, true);
-    gpu_frame = m.compacted.front().first;
+    if (auto gpu = m.compactor->try_read(m.compacted.front().second, true)) {
+      m.gpu_feedback.clear();
+      for (const auto& [page, count] : gpu->pages) m.gpu_feedback.push_back(tvt::PageFeedback{page, count});
+      m.gpu_feedback_frame = m.compacted.front().first;
+    }
     m.compacted.pop_front();
   }
-  if (gpu) {
-    for (const auto& [page, count] : gpu->pages) m.feedback.push_back(tvt::PageFeedback{page, count});
-    m.stats.feedback_pages = uint32_t(gpu->pages.size());
-    m.stats.feedback_frame = gpu_frame;
-  }
+  m.stats.gpu_feedback = m.gpu_feedback_frame.has_value();
+  m.stats.feedback_pages = uint32_t(m.gpu_feedback.size());
+  m.stats.feedback_frame = m.gpu_feedback_frame.value_or(0);
+  m.feedback.insert(m.feedback.end(), m.gpu_feedback.begin(), m.gpu_feedback.end());
   if (m.setup_frame && done && *done >= *m.setup_frame) {
     m.context->release_deferred_staging();
     m.setup_frame.reset();

@@ -69,7 +69,7 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
   auto terrain = TerrainRenderer::create(g, assets, ro);
   if (!terrain) return terrain.error();
   TerrainRenderer& t = *terrain.value();
-  if (uint64_t(t.feedback_width()) * t.feedback_height() != feedback_texels)
+  if (uint64_t(t.feedback_width()) * t.feedback_height() != feedback_texels)  // one rule, feedback_extent()
     return make_error("flythrough: the terrain pass's feedback is not the size the VT was made for");
   auto ring = FrameRing::create(g, o.frames_in_flight);
   if (!ring) return ring.error();
@@ -116,7 +116,7 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
     const int64_t cy = int64_t(std::clamp(fr.camera.position_m.y / mpt, 0.0, vt_max));
     if (auto st = vt.begin_frame(f, frames.completed_through(), cx, cy, {}); !st) return st.error();
     fr.residency_ms = ms_between(o.deterministic ? w1 : w0, std::chrono::steady_clock::now());
-    if (vt.stats().feedback_pages > 0) {
+    if (vt.stats().gpu_feedback) {
       fr.feedback_pages = vt.stats().feedback_pages;
       fr.feedback_frames_late = f - vt.stats().feedback_frame;
     }

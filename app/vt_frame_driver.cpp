@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <optional>
+#include <string>
 
 namespace tvt {
 
@@ -18,6 +19,11 @@ Result<std::unique_ptr<VtFrameDriver>> VtFrameDriver::create(vk::Context& contex
   const auto& vo = writer.options().vt;
   if (!vo || vo->feedback == FeedbackMode::None)
     return make_error("vt frame driver: the writer must sample the VT and write feedback");
+  const uint64_t texels = uint64_t(writer.feedback_width()) * writer.feedback_height();
+  if (terravt::detail::Access::feedback_texels(vt) != texels)
+    return make_error("vt frame driver: the VT compacts " + std::to_string(terravt::detail::Access::feedback_texels(vt)) +
+                      " feedback texels, the writer writes " + std::to_string(texels) +
+                      " (make the VT with vt_feedback_texels() of the writer's size)");
   std::unique_ptr<VtFrameDriver> d(new VtFrameDriver());
   d->context_ = &context;
   d->vt_ = &vt;
@@ -34,7 +40,7 @@ Result<VtFrameStats> VtFrameDriver::frame(const Camera& camera) {
   // Every earlier frame has completed (run_commands waited): the previous one's feedback joins.
   const std::optional<uint64_t> completed = frame_ > 0 ? std::optional<uint64_t>(frame_ - 1) : std::nullopt;
   if (auto st = vt_->begin_frame(frame_, completed, cx, cy, {}); !st) return st.error();
-  if (frame_ > first_frame_) last_feedback_pages_ = vt_->stats().feedback_pages;
+  if (vt_->stats().gpu_feedback) last_feedback_pages_ = vt_->stats().feedback_pages;
   Status recorded = Ok{}, compacted = Ok{};
   context_->run_commands([&](VkCommandBuffer cmd) {
     recorded = vt_->record(cmd);  // a complete frame even when composition failed

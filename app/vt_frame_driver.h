@@ -35,8 +35,9 @@ TerrainVtInputs terrain_vt_inputs(terravt::VirtualTexture& vt, uint32_t feedback
 
 class VtFrameDriver {
  public:
-  // first_frame: the frame number the driver's first frame gets; frames the caller ran on `vt`
-  // before (all completed) are numbered below it.
+  // first_frame: the frame number the driver's first frame gets; > 0 when the caller ran frames
+  // on `vt` before, the last of them first_frame - 1, all completed. The writer must write the
+  // VT's feedback_texels (checked).
   static Result<std::unique_ptr<VtFrameDriver>> create(vk::Context& context, terravt::VirtualTexture& vt,
                                                        TerrainRenderer& writer, uint64_t first_frame = 0);
 

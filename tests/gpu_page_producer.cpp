@@ -456,10 +456,19 @@ TEST(PageProducer, FeedbackWrittenOnTheGpuIsCompactedThereAndAsksForItsPages) {
   uint32_t most_feedback_pages = 0;
   for (uint64_t f = 0; f < 10; ++f) {
     VkCommandBuffer cmd = client.begin(f);
-    ASSERT_TRUE(vt.begin_frame(f, f >= 2 ? std::optional<uint64_t>(f - 2) : std::nullopt, centre, centre, {}).ok());
+    // Even frames find the previous frame complete (the queue drained); odd ones know only
+    // f - 2, the frame the even one before them knew already: no newer compaction.
+    if (f % 2 == 0) vkQueueWaitIdle(client.h.queue);
+    const std::optional<uint64_t> completed =
+        f < 2 ? std::nullopt : std::optional<uint64_t>(f % 2 == 0 ? f - 1 : f - 2);
+    ASSERT_TRUE(vt.begin_frame(f, completed, centre, centre, {}).ok());
     most_feedback_pages = std::max(most_feedback_pages, vt.stats().feedback_pages);
+    EXPECT_EQ(vt.stats().gpu_feedback, f >= 2) << "frame " << f;
     if (f >= 2) {
-      EXPECT_EQ(vt.stats().feedback_frame, f - 2);  // the newest completed frame's feedback
+      // The newest completed frame's feedback; an odd frame reuses its even predecessor's
+      // (the same frame's compaction), so the view's pages are asked for at every frame.
+      EXPECT_EQ(vt.stats().feedback_frame, *completed) << "frame " << f;
+      EXPECT_EQ(vt.stats().feedback_pages, 2u) << "frame " << f;
     }
     ASSERT_TRUE(vt.record(cmd).ok());
     // An offset the device cannot bind a storage buffer at is refused; nothing is recorded.

@@ -121,8 +121,12 @@ struct FrameStats {
   uint32_t failed = 0;         // pages that could not be produced (their ancestors stand in)
   uint32_t table_updates = 0;  // page-table entries rewritten
   uint32_t resident = 0;       // pages in the cache after this frame
-  uint32_t feedback_pages = 0; // distinct pages from GPU feedback that joined this frame's requests
-  uint64_t feedback_frame = 0; // ... compacted in this frame (valid when feedback_pages > 0)
+  // GPU feedback (record_feedback()) that joined this frame's requests: the compaction of the
+  // newest completed frame that recorded one. A frame whose `completed` brings no newer
+  // compaction reuses the newest one read, so requests keep flowing while the GPU catches up.
+  bool gpu_feedback = false;    // some did (false until the first compaction was read)
+  uint32_t feedback_pages = 0;  // its distinct pages
+  uint64_t feedback_frame = 0;  // the frame that recorded it (valid when gpu_feedback)
 };
 
 class TERRAVT_API VirtualTexture {
@@ -150,8 +154,8 @@ class TERRAVT_API VirtualTexture {
   // the client's pass earlier in `cmd` or in an earlier submission on the same queue; terravt
   // places the barrier after those writes). At most once per frame, after begin_frame() (before
   // or after record()). Its distinct pages, each weighted by the texels that asked for it, join
-  // the requests of the first begin_frame() whose `completed` frame is this one or newer; a
-  // newer completed frame's feedback replaces an older one's.
+  // the requests of every begin_frame() from the first whose `completed` frame is this one or
+  // newer, until a newer completed frame's feedback replaces it (FrameStats::gpu_feedback).
   // `offset` must be a multiple of the device's minStorageBufferOffsetAlignment (else
   // invalid_argument, nothing recorded).
   Status record_feedback(VkCommandBuffer cmd, VkBuffer feedback, VkDeviceSize offset = 0);
