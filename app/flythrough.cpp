@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <chrono>
 
-#include "api/tool_access.h"
+#include "app/vt_frame_driver.h"
 #include "gpu/frame_ring.h"
 #include "render/terrain_renderer.h"
 #include "render/vt_debug.h"
@@ -33,26 +33,18 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
   if (o.feedback_mode == FeedbackMode::None) return make_error("feedback_mode: the loop needs feedback");
   if (o.feedback_divisor < 1 || o.feedback_divisor > 64)
     return make_error("feedback_divisor: must be 1 ... 64, got " + std::to_string(o.feedback_divisor));
-  auto handles = g.device_handles();
-  if (!handles) return handles.error();
-  // The terrain pass is created first: its feedback buffer's size is the VT's feedback_texels.
-  // It binds the VT's buffers, so the VT comes first in memory: created below, it is handed
-  // to the renderer through TerrainVtInputs before any frame is recorded.
-  TerrainVtInputs vt_inputs{nullptr, nullptr, nullptr, VK_NULL_HANDLE, o.feedback_divisor, o.feedback_mode,
-                            o.max_anisotropy, o.mip_filter};
-  const uint32_t feedback_texels = TerrainRenderer::feedback_extent(o.width, o.feedback_divisor) *
-                                   TerrainRenderer::feedback_extent(o.height, o.feedback_divisor);
-  // The VT through the public API, on this device, exactly as an engine runs it.
+  // The VT through the public API, on this device, exactly as an engine runs it; it compacts
+  // the feedback of the terrain pass made below.
   terravt::detail::ToolVirtualTexture td;
   td.assets = &assets;
   td.method = o.method;
   td.mip_strategy = o.mip_strategy;
   td.runtime = o.vt;
   td.runtime.frames_in_flight = o.frames_in_flight;
-  td.feedback_texels = feedback_texels;
+  td.feedback_texels = vt_feedback_texels(o.width, o.height, o.feedback_divisor);
   // The terrain pass samples in its fragment shader; the separate feedback pass too.
   td.consumer_stages = VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT;
-  auto made = terravt::detail::create_virtual_texture(handles.value(), td);
+  auto made = create_tool_vt(g, td);
   if (!made) return made.error();
   terravt::VirtualTexture& vt = *made.value();
   VtSystem& v = terravt::detail::runtime(vt);  // statistics and debug read-backs only
@@ -61,16 +53,10 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
   ro.width = o.width;
   ro.lighting = o.lighting;
   ro.height = o.height;
-  vt_inputs.info = &v.info_buffer();
-  vt_inputs.entries = &v.entry_buffer();
-  vt_inputs.cache = &v.cache();
-  vt_inputs.sampler = v.sampler();
-  ro.vt = vt_inputs;
+  ro.vt = terrain_vt_inputs(vt, o.feedback_divisor, o.feedback_mode, o.max_anisotropy, o.mip_filter);
   auto terrain = TerrainRenderer::create(g, assets, ro);
   if (!terrain) return terrain.error();
   TerrainRenderer& t = *terrain.value();
-  if (uint64_t(t.feedback_width()) * t.feedback_height() != feedback_texels)  // one rule, feedback_extent()
-    return make_error("flythrough: the terrain pass's feedback is not the size the VT was made for");
   auto ring = FrameRing::create(g, o.frames_in_flight);
   if (!ring) return ring.error();
   FrameRing& frames = *ring.value();
@@ -81,8 +67,6 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
   const CameraPath& path = resolved.value();
   const Camera lens = o.camera ? o.camera->lens : Camera{};
   const std::vector<double> cuts = path.cut_times();
-  const double mpt = mesh.metres_per_texel();
-  const double vt_max = double(assets.desc.vt.size_texels() - 1);
 
   FlythroughSummary sum;
   const auto start = std::chrono::steady_clock::now();
@@ -112,9 +96,8 @@ Result<FlythroughSummary> run_flythrough(vk::Context& g, const SceneAssets& asse
       fr.wait_ms += ms_between(w0, std::chrono::steady_clock::now());
     }
     const auto w1 = std::chrono::steady_clock::now();
-    const int64_t cx = int64_t(std::clamp(fr.camera.position_m.x / mpt, 0.0, vt_max));
-    const int64_t cy = int64_t(std::clamp(fr.camera.position_m.y / mpt, 0.0, vt_max));
-    if (auto st = vt.begin_frame(f, frames.completed_through(), cx, cy, {}); !st) return st.error();
+    const CameraTexel at = camera_texel(mesh, fr.camera);
+    if (auto st = vt.begin_frame(f, frames.completed_through(), at.x, at.y, {}); !st) return st.error();
     fr.residency_ms = ms_between(o.deterministic ? w1 : w0, std::chrono::steady_clock::now());
     if (vt.stats().gpu_feedback) {
       fr.feedback_pages = vt.stats().feedback_pages;

@@ -7,6 +7,19 @@
 
 namespace tvt {
 
+Result<std::unique_ptr<terravt::VirtualTexture>> create_tool_vt(vk::Context& context,
+                                                                terravt::detail::ToolVirtualTexture desc) {
+  auto handles = context.device_handles();
+  if (!handles) return handles.error();
+  return terravt::detail::create_virtual_texture(handles.value(), desc);
+}
+
+CameraTexel camera_texel(const TerrainMesh& mesh, const Camera& camera) {
+  const double mpt = mesh.metres_per_texel(), vt_max = double(mesh.vt_texels() - 1);
+  return CameraTexel{int64_t(std::clamp(camera.position_m.x / mpt, 0.0, vt_max)),
+                     int64_t(std::clamp(camera.position_m.y / mpt, 0.0, vt_max))};
+}
+
 TerrainVtInputs terrain_vt_inputs(terravt::VirtualTexture& vt, uint32_t feedback_divisor, FeedbackMode mode,
                                   uint32_t max_anisotropy, VtMipFilter mip_filter) {
   const VtSystem& v = terravt::detail::runtime(vt);
@@ -33,13 +46,10 @@ Result<std::unique_ptr<VtFrameDriver>> VtFrameDriver::create(vk::Context& contex
 }
 
 Result<VtFrameStats> VtFrameDriver::frame(const Camera& camera) {
-  const TerrainMesh& mesh = writer_->mesh();
-  const double mpt = mesh.metres_per_texel(), vt_max = double(mesh.vt_texels() - 1);
-  const int64_t cx = int64_t(std::clamp(camera.position_m.x / mpt, 0.0, vt_max));
-  const int64_t cy = int64_t(std::clamp(camera.position_m.y / mpt, 0.0, vt_max));
+  const CameraTexel at = camera_texel(writer_->mesh(), camera);
   // Every earlier frame has completed (run_commands waited): the previous one's feedback joins.
   const std::optional<uint64_t> completed = frame_ > 0 ? std::optional<uint64_t>(frame_ - 1) : std::nullopt;
-  if (auto st = vt_->begin_frame(frame_, completed, cx, cy, {}); !st) return st.error();
+  if (auto st = vt_->begin_frame(frame_, completed, at.x, at.y, {}); !st) return st.error();
   if (vt_->stats().gpu_feedback) last_feedback_pages_ = vt_->stats().feedback_pages;
   Status recorded = Ok{}, compacted = Ok{};
   context_->run_commands([&](VkCommandBuffer cmd) {

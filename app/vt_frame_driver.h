@@ -15,6 +15,7 @@
 #include "api/tool_access.h"
 #include "render/terrain_renderer.h"
 #include "terrain/camera.h"
+#include "terrain/terrain_mesh.h"
 
 namespace tvt {
 
@@ -28,6 +29,17 @@ struct VtConvergence {
 inline uint32_t vt_feedback_texels(uint32_t width, uint32_t height, uint32_t divisor) {
   return TerrainRenderer::feedback_extent(width, divisor) * TerrainRenderer::feedback_extent(height, divisor);
 }
+
+// The VT on the device `context` made, through the public API: its handles go to
+// terravt::VirtualTexture exactly as an engine hands in its own (api/tool_access.h).
+Result<std::unique_ptr<terravt::VirtualTexture>> create_tool_vt(vk::Context& context,
+                                                                terravt::detail::ToolVirtualTexture desc);
+
+// The level-0 VT texel under `camera` (clamped to the terrain): begin_frame()'s camera texel.
+struct CameraTexel {
+  int64_t x = 0, y = 0;
+};
+CameraTexel camera_texel(const TerrainMesh& mesh, const Camera& camera);
 
 // What a terrain pass binds to sample `vt` (its runtime's buffers, cache and sampler).
 TerrainVtInputs terrain_vt_inputs(terravt::VirtualTexture& vt, uint32_t feedback_divisor, FeedbackMode mode,

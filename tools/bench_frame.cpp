@@ -105,15 +105,13 @@ Result<StaticResult> measure_static(vk::Context& g, const SceneAssets& assets, M
   if (!packed) return packed.error();
   // The VT through the public API on this device, as the flythrough runs it. Its feedback
   // comes from the converger below (half resolution).
-  auto handles = g.device_handles();
-  if (!handles) return handles.error();
   terravt::detail::ToolVirtualTexture td;
   td.assets = &assets;
   td.method = method;
   td.runtime.cache_slots = std::max(a.cache_slots, 1024u);  // anisotropic poses want more pages than the loop's cache
   td.runtime.page_budget = 64;
   td.feedback_texels = vt_feedback_texels(a.width, a.height, 2);
-  auto vt = terravt::detail::create_virtual_texture(handles.value(), td);
+  auto vt = create_tool_vt(g, td);
   if (!vt) return vt.error();
   terravt::VirtualTexture& v = *vt.value();
   auto composer = GpuComposer::create(g, packed.value(), 1);

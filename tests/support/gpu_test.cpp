@@ -4,6 +4,8 @@
 #include <memory>
 #include <mutex>
 
+#include "app/vt_frame_driver.h"
+
 namespace tvt {
 namespace {
 
@@ -79,15 +81,12 @@ void GpuTest::TearDown() {
 
 std::unique_ptr<terravt::VirtualTexture> make_tool_vt(vk::Context& g, const SceneAssets& assets, Method method,
                                                       const VtSystemOptions& options, uint32_t feedback_texels) {
-  auto handles = g.device_handles();
-  EXPECT_TRUE(handles.ok()) << handles.error().message;
-  if (!handles) return nullptr;
   terravt::detail::ToolVirtualTexture td;
   td.assets = &assets;
   td.method = method;
   td.runtime = options;
   td.feedback_texels = feedback_texels;
-  auto vt = terravt::detail::create_virtual_texture(handles.value(), td);
+  auto vt = create_tool_vt(g, td);
   EXPECT_TRUE(vt.ok()) << vt.error().message;
   return vt ? std::move(vt.value()) : nullptr;
 }
