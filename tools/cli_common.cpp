@@ -22,9 +22,11 @@
 
 namespace tvt::cli {
 
-Result<SceneAssets> load_scene_and_assets(const std::string& path) {
+Result<SceneAssets> load_scene_and_assets(const std::string& path, const std::string& hex) {
   Result<SceneDesc> desc = path.empty() ? Result<SceneDesc>(default_scene()) : load_scene_file(path);
   if (!desc) return desc.error();
+  if (hex != "scene")
+    for (MaterialDesc& m : desc.value().materials) m.hex.enabled = hex == "on";
   return load_scene_assets(desc.value());
 }
 
@@ -110,11 +112,6 @@ void add_hex_option(CLI::App& app, std::string& text) {
                  "layers above the base) or off")
       ->check(CLI::IsMember({"scene", "on", "off"}))
       ->capture_default_str();
-}
-
-void apply_hex_option(SceneAssets& assets, const std::string& text) {
-  if (text == "scene") return;
-  for (MaterialDesc& m : assets.desc.materials) m.hex.enabled = text == "on";
 }
 
 std::optional<std::string> not_a_regular_file(const std::string& path) {

@@ -20,7 +20,10 @@
 namespace tvt::cli {
 
 // Loads a scene file, or the built-in default scene when `path` is empty, and its assets.
-Result<SceneAssets> load_scene_and_assets(const std::string& path);
+// `hex`: a value add_hex_option() accepted, applied to every material before the assets load
+// ("scene" leaves the scene's choices; a store baked or compared so records it in its scene
+// identity).
+Result<SceneAssets> load_scene_and_assets(const std::string& path, const std::string& hex = "scene");
 
 // The camera path a flythrough command follows: a --camera file, checked and resolved over
 // the scene's terrain (so a bad file fails before anything is written), or the built-in
@@ -55,9 +58,6 @@ MipStrategy parsed_mip_strategy(const std::string& text);
 // --hex scene|on|off: hex-tiling (the anti-repetition mode) as each material of the scene
 // says, on every material (its scene parameters, else the defaults), or off everywhere.
 void add_hex_option(CLI::App& app, std::string& text);
-// Applies a value add_hex_option() accepted to the loaded scene, before anything is packed; a
-// store baked or compared this way records it in its scene identity.
-void apply_hex_option(SceneAssets& assets, const std::string& text);
 
 // Why `path` cannot be read as a regular input file ("is a directory", "is a FIFO", ...),
 // or nullopt when it can be. Follows symbolic links.

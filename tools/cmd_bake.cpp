@@ -108,9 +108,8 @@ int run_bake(const BakeArgs& a) {
   if (!a.save_dict.empty())
     if (auto s = check_output_file("--save-dict", a.save_dict, a.overwrite); !s) return fail(cmd, s.error().message, 2);
 
-  auto assets = load_scene_and_assets(a.scene);
+  auto assets = load_scene_and_assets(a.scene, a.hex);
   if (!assets) return fail(cmd, assets.error().message, 2);
-  apply_hex_option(assets.value(), a.hex);
   const VtConfig& vt = assets->desc.vt;
   BakeRegion region;
   // Out-of-range values are refused, not clamped: --mips 0,99 would silently bake every mip.

@@ -254,9 +254,8 @@ int run_compare(const CompareArgs& a) {
   if (!owned) return fail(cmd, owned.error().message, 2);
   if (auto s = check_compare_folder(a.out, a.overwrite); !s) return fail(cmd, s.error().message, 2);
   // Inputs first: a bad scene or camera file leaves no output folder behind.
-  auto assets = load_scene_and_assets(a.scene);
+  auto assets = load_scene_and_assets(a.scene, a.hex);
   if (!assets) return fail(cmd, assets.error().message, 2);
-  apply_hex_option(assets.value(), a.hex);
   auto camera = choose_camera(a.camera, assets.value());
   if (!camera) return fail(cmd, camera.error().message, 2);
   // Timings compare producers, not first-use loading: read every material up front.

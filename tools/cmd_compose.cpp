@@ -58,9 +58,8 @@ int run_compose(const ComposeArgs& a) {
   }
 
   const auto t0 = std::chrono::steady_clock::now();
-  auto assets = load_scene_and_assets(a.scene);
+  auto assets = load_scene_and_assets(a.scene, a.hex);
   if (!assets) return fail(cmd, assets.error().message, 2);
-  apply_hex_option(assets.value(), a.hex);
   const VtConfig& vt = assets->desc.vt;
   if (a.mip >= vt.mip_count())
     return fail(cmd, "--mip: must be below " + std::to_string(vt.mip_count()) + " for this scene, got " + std::to_string(a.mip), 2);

@@ -220,9 +220,8 @@ int run_render(const RenderArgs& a) {
     }
   }
   // Inputs first: a bad scene or a missing device leaves no output folder behind.
-  auto assets = load_scene_and_assets(a.scene);
+  auto assets = load_scene_and_assets(a.scene, a.hex);
   if (!assets) return fail(cmd, assets.error().message, 2);
-  apply_hex_option(assets.value(), a.hex);
   // A store of another scene, method or VT geometry is as unusable as one that cannot be opened.
   if (store) {
     const uint64_t wanted =
