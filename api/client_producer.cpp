@@ -60,7 +60,14 @@ tvt::Status ClientProducer::record(VkCommandBuffer cmd, tvt::ProducerOutcome& ou
   take(written_, out.written);
   take(failed_, out.failed);
   written_count_ = uint32_t(out.written.size() - written_before);
-  if (!s) return Error{ErrorKind::producer_failed, "page producer: " + s.error().message};
+  if (!s) {
+    // A failed Vulkan call keeps its kind and VkResult (the VirtualTexture latches it); any
+    // other failure is the producer's.
+    const Error& e = s.error();
+    const bool device_level = e.vk_result != 0 || e.kind == ErrorKind::vulkan || e.kind == ErrorKind::device_lost ||
+                              e.kind == ErrorKind::out_of_memory;
+    return Error{device_level ? e.kind : ErrorKind::producer_failed, "page producer: " + e.message, e.vk_result};
+  }
   if (!contract.empty())
     return Error{ErrorKind::misuse, "page producer: record() reported " + contract + " (ignored)"};
   return Ok{};

@@ -10,12 +10,9 @@
 
 #include "api/client_producer.h"
 #include "api/tool_access.h"
-#include "compose/packed_scene.h"
-#include "compose/scene.h"
-#include "compose/scene_assets.h"
-#include "compose/scene_identity.h"
 #include "gpu/context.h"
 #include "render/feedback_compactor.h"
+#include "render/stored_pages.h"
 #include "render/vt_system.h"
 #include "streaming/page_store.h"
 
@@ -54,13 +51,11 @@ Error as_input_error(const Error& e, const std::string& prefix = "") {
   return invalid(prefix + e.message);
 }
 
-std::optional<tvt::VtSource> internal_source(PageSource s) {
-  switch (s) {
-    case PageSource::composed: return tvt::VtSource::procedural;
-    case PageSource::stored: return tvt::VtSource::stored;
-    case PageSource::hybrid: return tvt::VtSource::hybrid;
-  }
-  return std::nullopt;
+// What the compose component (terravt/compose.h) makes, asked of libterravt alone.
+Error needs_compose(const std::string& field, const std::string& what) {
+  return invalid("VirtualTextureDesc::" + field + ": " + what +
+                 " need terravt's compose component: call terravt::compose::create_virtual_texture() "
+                 "(terravt/compose.h; CMake target terravt::compose)");
 }
 
 }  // namespace
@@ -68,8 +63,7 @@ std::optional<tvt::VtSource> internal_source(PageSource s) {
 struct VirtualTexture::Impl {
   VirtualTextureDesc desc;
   std::unique_ptr<tvt::vk::Context> context;  // declared first: destroyed last
-  tvt::SceneAssets owned_assets;              // create(): the scene it loaded
-  const tvt::SceneAssets* assets = nullptr;   // &owned_assets, or a tool's (api/tool_access.h)
+  tvt::VtConfig config;                       // the geometry
   std::unique_ptr<tvt::VtSystem> vt;
   std::vector<tvt::PageFeedback> feedback;
   std::optional<uint64_t> last_begun, last_completed;
@@ -86,6 +80,13 @@ struct VirtualTexture::Impl {
   std::optional<uint64_t> gpu_feedback_frame;
   bool feedback_recorded = false;      // record_feedback() ran for the last frame begun
   bool busy = false;  // inside a call: a producer's callback calling back in is refused
+  // A failed Vulkan call on the device, by terravt's context or reported by the producer (which
+  // may record on a context of its own): every later call returns it.
+  std::optional<Error> device_error;
+  Status device_status() const {
+    if (device_error) return *device_error;
+    return context->status();
+  }
   std::optional<uint64_t> setup_frame;  // the frame that recorded the set-up; its staging lives until it completed
   // The set-up create() deferred goes first into whichever command buffer comes first.
   void record_setup(VkCommandBuffer cmd) {
@@ -104,12 +105,16 @@ namespace detail {
 tvt::VtSystem& Access::runtime(VirtualTexture& vt) { return *vt.impl_->vt; }
 uint32_t Access::feedback_texels(const VirtualTexture& vt) { return vt.impl_->desc.feedback_texels; }
 
-// The one path from a device and a scene to a VirtualTexture: create() (a scene file and
-// VirtualTextureDesc) and create_virtual_texture() (terravt's tools) both end here.
-// impl->desc and impl->assets are set; `o` holds the runtime's options.
-Result<std::unique_ptr<VirtualTexture>> Access::make(const DeviceHandles& device, std::unique_ptr<VirtualTexture::Impl> impl,
-                                                     tvt::Method method, tvt::MipStrategy strategy, tvt::VtSystemOptions o) {
-  const VirtualTextureDesc& desc = impl->desc;
+// The one path from a device to a VirtualTexture: create() (a store or a client's producer),
+// the compose component (terravt/compose.h: its producers are client producers too) and
+// terravt's tools (composer/tool_vt.h) all end here. `o` holds the runtime's options and the
+// producer (or its factory).
+Result<std::unique_ptr<VirtualTexture>> Access::make(const DeviceHandles& device, const VirtualTextureDesc& desc,
+                                                     const tvt::VtConfig& config, tvt::VtSystemOptions o) {
+  if (auto valid = tvt::validate(config, "VirtualTextureDesc::layout"); !valid) return invalid(valid.error().message);
+  auto impl = std::make_unique<VirtualTexture::Impl>();
+  impl->desc = desc;
+  impl->config = config;
   // The legacy stage bits have the same values as their VK_PIPELINE_STAGE_2_* counterparts.
   const VkPipelineStageFlags2 consumers = desc.consumer_stages;
   const VkPipelineStageFlags2 producers = VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_TRANSFER_BIT;
@@ -132,12 +137,12 @@ Result<std::unique_ptr<VirtualTexture>> Access::make(const DeviceHandles& device
   // Nothing is submitted on the client's queue: set-up is recorded by the first record().
   impl->context->defer_setup();
 
-  auto packed = tvt::pack_scene(*impl->assets, tvt::options_for(method, strategy));
-  if (!packed) return invalid(packed.error().message);
-  if (o.store && o.scene_hash == 0)
-    o.scene_hash = tvt::store_scene_identity(impl->assets->desc, method, strategy, o.store->desc().pyramid);
+  o.cache_slots = desc.cache_slots;
+  o.page_budget = desc.page_budget;
+  o.window_pages = desc.window_pages;
   o.frames_in_flight = desc.frames_in_flight;
-  auto vt = tvt::VtSystem::create(*impl->context, packed.value(), o);
+  if (desc.producer) o.producer = std::make_shared<detail::ClientProducer>(desc.producer, desc.page_budget);
+  auto vt = tvt::VtSystem::create(*impl->context, config, o);
   if (!vt) return as_input_error(vt.error());
   impl->vt = std::move(vt.value());
   if (desc.feedback_texels > 0) {
@@ -153,7 +158,7 @@ Result<std::unique_ptr<VirtualTexture>> Access::make(const DeviceHandles& device
     impl->compactor = std::move(compactor.value());
   }
   if (desc.producer) {
-    const tvt::VtConfig& c = impl->assets->desc.vt;
+    const tvt::VtConfig& c = config;
     const tvt::vk::Image& cache = impl->vt->cache();
     ProducerTarget t;
     t.cache = cache.handle();
@@ -167,74 +172,60 @@ Result<std::unique_ptr<VirtualTexture>> Access::make(const DeviceHandles& device
     t.mip_count = c.mip_count();
     t.frames_in_flight = desc.frames_in_flight;
     if (auto attached = desc.producer->attach(t); !attached)
-      return Error{attached.error().kind, "VirtualTextureDesc::producer: attach(): " + attached.error().message};
+      return Error{attached.error().kind, "VirtualTextureDesc::producer: attach(): " + attached.error().message,
+                   attached.error().vk_result};
   }
   return std::unique_ptr<VirtualTexture>(new VirtualTexture(std::move(impl)));
 }
 
-Result<std::unique_ptr<VirtualTexture>> create_virtual_texture(const DeviceHandles& device, const ToolVirtualTexture& td) {
-  return Access::make_for_tool(device, td);
-}
-
-Result<std::unique_ptr<VirtualTexture>> Access::make_for_tool(const DeviceHandles& device, const ToolVirtualTexture& td) {
-  if (!td.assets) return invalid("create_virtual_texture(): no scene assets");
-  if (td.consumer_stages == 0) return invalid("create_virtual_texture(): consumer_stages: name at least one stage");
-  auto impl = std::make_unique<VirtualTexture::Impl>();
-  VirtualTextureDesc& d = impl->desc;  // the public subset, as the runtime options set it
-  d.cache_slots = td.runtime.cache_slots;
-  d.page_budget = td.runtime.page_budget;
-  d.window_pages = td.runtime.window_pages;
-  d.frames_in_flight = td.runtime.frames_in_flight;
-  d.feedback_texels = td.feedback_texels;
-  d.consumer_stages = td.consumer_stages;
-  impl->assets = td.assets;
-  return make(device, std::move(impl), td.method, td.mip_strategy, td.runtime);
-}
-
 }  // namespace detail
 
-Result<std::unique_ptr<VirtualTexture>> VirtualTexture::create(const DeviceHandles& device,
-                                                               const VirtualTextureDesc& desc) {
-  const auto source = internal_source(desc.source);
-  if (!source) return invalid("VirtualTextureDesc::source: not a PageSource value");
-  const auto method = tvt::method_from_string(desc.method);
-  if (!method) return invalid("VirtualTextureDesc::method: unknown method '" + desc.method + "'");
-  const auto strategy = tvt::mip_strategy_from_string(desc.mip_strategy);
-  if (!strategy) return invalid("VirtualTextureDesc::mip_strategy: " + strategy.error().message);
+Status detail::Access::check_desc(const DeviceHandles& device, const VirtualTextureDesc& desc) {
+  if (desc.source != PageSource::composed && desc.source != PageSource::stored && desc.source != PageSource::hybrid)
+    return invalid("VirtualTextureDesc::source: not a PageSource value");
   if (desc.source != PageSource::composed && desc.store_file.empty() && !desc.producer)
     return invalid("VirtualTextureDesc::store_file: a stored or hybrid source needs a store");
   if (desc.consumer_stages == 0) return invalid("VirtualTextureDesc::consumer_stages: name at least one stage");
   // The device first: a device terravt cannot run on is the first thing to hear about.
-  if (auto st = check_device(device); !st) return st.error();
+  return check_device(device);
+}
 
-  auto impl = std::make_unique<Impl>();
-  impl->desc = desc;
-  auto scene = desc.scene_file.empty() ? tvt::Result<tvt::SceneDesc>(tvt::default_scene())
-                                       : tvt::load_scene_file(desc.scene_file);
-  if (!scene) return invalid(scene.error().message);
-  auto assets = tvt::load_scene_assets(scene.value());
-  if (!assets)  // running out of memory stays out_of_memory; anything else is the input's fault
-    return assets.error().kind == ErrorKind::out_of_memory ? assets.error() : invalid(assets.error().message);
-  impl->owned_assets = std::move(assets.value());
-  impl->assets = &impl->owned_assets;
-
+Result<std::unique_ptr<VirtualTexture>> VirtualTexture::create(const DeviceHandles& device,
+                                                               const VirtualTextureDesc& desc) {
+  if (auto st = detail::Access::check_desc(device, desc); !st) return st.error();
+  if (!desc.scene_file.empty()) return needs_compose("scene_file", "scenes");
   tvt::VtSystemOptions o;
-  o.cache_slots = desc.cache_slots;
-  o.page_budget = desc.page_budget;
-  o.window_pages = desc.window_pages;
-  o.source = *source;
+  const VirtualTextureLayout& l = desc.layout;
   if (desc.producer) {
-    o.producer = std::make_shared<detail::ClientProducer>(desc.producer, desc.page_budget);
-  } else if (desc.source != PageSource::composed) {
-    auto store = tvt::PageStoreReader::open(desc.store_file);
-    if (!store) return Error{ErrorKind::io, store.error().message};
-    o.store = std::move(store.value());
+    if (l.log2_size == 0)
+      return invalid("VirtualTextureDesc::layout: log2_size is 0; a producer without a scene needs the VT's geometry");
+    return detail::Access::make(device, desc, tvt::VtConfig{l.log2_size, l.page_texels, l.border_texels}, std::move(o));
   }
-  return detail::Access::make(device, std::move(impl), *method, strategy.value(), std::move(o));
+  if (desc.source != PageSource::stored) return needs_compose("source", "composed and hybrid pages");
+  auto opened = tvt::PageStoreReader::open(desc.store_file);
+  if (!opened) return Error{ErrorKind::io, opened.error().message};
+  std::shared_ptr<const tvt::PageStoreReader> store = std::move(opened.value());
+  const tvt::VtConfig config = store->desc().vt;
+  if (l.log2_size != 0 && (l.log2_size != config.log2_size || l.page_texels != config.page_texels ||
+                           l.border_texels != config.border_texels))
+    return invalid("VirtualTextureDesc::layout: (log2_size " + std::to_string(l.log2_size) + ", page_texels " +
+                   std::to_string(l.page_texels) + ", border_texels " + std::to_string(l.border_texels) +
+                   ") differs from the store's " + desc.store_file + " (" + std::to_string(config.log2_size) + ", " +
+                   std::to_string(config.page_texels) + ", " + std::to_string(config.border_texels) + ")");
+  tvt::StoredPagesOptions so;
+  so.page_budget = desc.page_budget;
+  so.frames_in_flight = desc.frames_in_flight;
+  o.make_producer = [store, config, so](tvt::vk::Context& context,
+                                        tvt::vk::Image& cache) -> tvt::Result<std::shared_ptr<tvt::PageProducer>> {
+    auto made = tvt::StoredPages::create(context, store, cache, config, so);
+    if (!made) return made.error();
+    return std::shared_ptr<tvt::PageProducer>(std::move(made.value()));
+  };
+  return detail::Access::make(device, desc, config, std::move(o));
 }
 
 VirtualTextureInfo VirtualTexture::info() const {
-  const tvt::VtConfig& c = impl_->assets->desc.vt;
+  const tvt::VtConfig& c = impl_->config;
   return VirtualTextureInfo{c.log2_size, c.page_texels, c.border_texels, c.mip_count(), impl_->desc.cache_slots};
 }
 
@@ -257,7 +248,7 @@ Status VirtualTexture::begin_frame(uint64_t frame, std::optional<uint64_t> compl
   const BusyGuard guard(m.busy);
   if (guard.reentered()) return reentered("begin_frame()");
   // A failed Vulkan call (out of memory, device lost) stays: every call returns it.
-  if (auto st = m.context->status(); !st) return st;
+  if (auto st = m.device_status(); !st) return st;
   const std::string f = std::to_string(frame);
   if (!m.recorded)
     return misuse("begin_frame(" + f + "): record() did not follow begin_frame(" + std::to_string(*m.last_begun) + ")");
@@ -279,7 +270,7 @@ Status VirtualTexture::begin_frame(uint64_t frame, std::optional<uint64_t> compl
     return misuse("begin_frame(" + f + "): " + std::to_string(open) + " earlier frame(s) not completed, and at most " +
                   std::to_string(m.desc.frames_in_flight) + " may be in flight (VirtualTextureDesc::frames_in_flight)");
 
-  const tvt::VtConfig& c = m.assets->desc.vt;
+  const tvt::VtConfig& c = m.config;
   m.feedback.clear();
   for (size_t i = 0; i < requests.size(); ++i) {
     const PageRequest& r = requests[i];
@@ -326,7 +317,7 @@ Status VirtualTexture::record(VkCommandBuffer cmd) {
   const BusyGuard guard(m.busy);
   if (guard.reentered()) return reentered("record()");
   // A failed Vulkan call (out of memory, device lost) stays: nothing is recorded any more.
-  if (auto st = m.context->status(); !st) return st;
+  if (auto st = m.device_status(); !st) return st;
   if (m.recorded)
     return misuse(m.last_begun ? "record(): frame " + std::to_string(*m.last_begun) + " was recorded already"
                                : std::string("record(): no frame begun (call begin_frame() first)"));
@@ -349,8 +340,15 @@ Status VirtualTexture::record(VkCommandBuffer cmd) {
   m.stats.failed = vs.produce_failed + vs.missing;
   m.stats.table_updates = vs.table_updates;
   m.stats.resident = vs.residency.resident;
-  if (!s) return s.error().kind == ErrorKind::invalid_argument ? Error{ErrorKind::producer_failed, s.error().message}
-                                                                : s.error();
+  if (!s) {
+    const Error& e = s.error();
+    if (e.vk_result != 0 || e.kind == ErrorKind::vulkan || e.kind == ErrorKind::device_lost ||
+        e.kind == ErrorKind::out_of_memory) {
+      if (!m.device_error && m.context->status()) m.device_error = e;  // the producer's device failure stays
+      return m.device_status();
+    }
+    return e.kind == ErrorKind::invalid_argument ? Error{ErrorKind::producer_failed, e.message} : e;
+  }
   return Ok{};
 }
 
@@ -358,7 +356,7 @@ Status VirtualTexture::record_feedback(VkCommandBuffer cmd, VkBuffer feedback, V
   Impl& m = *impl_;
   const BusyGuard guard(m.busy);
   if (guard.reentered()) return reentered("record_feedback()");
-  if (auto st = m.context->status(); !st) return st;
+  if (auto st = m.device_status(); !st) return st;
   if (!m.compactor) return misuse("record_feedback(): VirtualTextureDesc::feedback_texels was 0 at create()");
   if (!m.last_begun) return misuse("record_feedback(): no frame begun (call begin_frame() first)");
   if (m.feedback_recorded)
@@ -375,7 +373,7 @@ Status VirtualTexture::record_feedback(VkCommandBuffer cmd, VkBuffer feedback, V
   m.compactor->record_unfenced(cmd, feedback, offset, m.compactions);
   m.compacted.emplace_back(*m.last_begun, m.compactions++);
   m.feedback_recorded = true;
-  return m.context->status();
+  return m.device_status();
 }
 
 const FrameStats& VirtualTexture::stats() const { return impl_->stats; }

@@ -5,8 +5,8 @@
 
 #include "app/vt_frame_driver.h"
 #include "gpu/frame_ring.h"
-#include "render/terrain_renderer.h"
-#include "render/vt_debug.h"
+#include "app/terrain_renderer.h"
+#include "app/vt_debug.h"
 
 namespace tvt {
 

@@ -17,8 +17,9 @@
 #include "terrain/camera.h"
 #include "terrain/camera_file.h"
 #include "terrain/terrain_mesh.h"
-#include "render/terrain_renderer.h"
+#include "app/terrain_renderer.h"
 #include "gpu/context.h"
+#include "composer/builtin_producers.h"
 #include "render/vt_system.h"
 
 namespace tvt {
@@ -33,7 +34,7 @@ struct FlythroughOptions {
   FeedbackMode feedback_mode = FeedbackMode::Attachment;  // who writes feedback (not None)
   uint32_t max_anisotropy = 1;          // VT taps per mip along the footprint (1: isotropic; <= B)
   VtMipFilter mip_filter = VtMipFilter::Trilinear;  // between mips: trilinear, brilinear band or nearest only
-  VtSystemOptions vt;
+  SceneVtOptions vt;
   int debug_view = 0;                   // TVT_VT_VIEW_*: 1 colours every texel by its data mip
   TerrainLighting lighting;             // sun, ambient, sky/fog, detail relief
   // Reads each frame's feedback exactly one frame late, waiting for it if needed, so two runs

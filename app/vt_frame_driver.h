@@ -12,8 +12,8 @@
 #include <cstdint>
 #include <memory>
 
-#include "api/tool_access.h"
-#include "render/terrain_renderer.h"
+#include "api/compose/tool_vt.h"
+#include "app/terrain_renderer.h"
 #include "terrain/camera.h"
 #include "terrain/terrain_mesh.h"
 

@@ -1,4 +1,5 @@
-# `cmake --install`: libterravt (shared, with its SOVERSION links, and static: libterravt.a), the public headers, the GLSL
+# `cmake --install`: libterravt and libterravt_compose (shared, with their SOVERSION links, and
+# static: libterravt.a, libterravt_compose.a), the public headers, the GLSL
 # contract (terravt/vt.glsl and the files it includes, under terravt/glsl/), the CMake package
 # (terravtConfig.cmake, version file, targets in the terravt:: namespace) and a pkg-config file.
 # Nothing else is installed: internal headers and libraries stay in the build tree.
@@ -24,9 +25,15 @@ install(FILES ${PROJECT_SOURCE_DIR}/shaders/shared/bridge.h ${PROJECT_SOURCE_DIR
 
 set(TVT_CMAKE_DIR ${CMAKE_INSTALL_LIBDIR}/cmake/terravt)
 install(EXPORT terravtTargets NAMESPACE terravt:: DESTINATION ${TVT_CMAKE_DIR})
-# libterravt.a: its own export set, loaded by the package only for COMPONENTS static.
+# Each further component is its own export set, loaded by the package only when asked for:
+# libterravt_compose.so (COMPONENTS compose), libterravt.a (static), libterravt_compose.a (both).
+install(TARGETS terravt_compose_lib EXPORT terravtComposeTargets
+  LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR} RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+install(EXPORT terravtComposeTargets NAMESPACE terravt:: DESTINATION ${TVT_CMAKE_DIR})
 install(TARGETS terravt_static EXPORT terravtStaticTargets ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR})
 install(EXPORT terravtStaticTargets NAMESPACE terravt:: DESTINATION ${TVT_CMAKE_DIR})
+install(TARGETS terravt_compose_static EXPORT terravtComposeStaticTargets ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR})
+install(EXPORT terravtComposeStaticTargets NAMESPACE terravt:: DESTINATION ${TVT_CMAKE_DIR})
 configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/terravtConfig.cmake.in
   ${PROJECT_BINARY_DIR}/terravtConfig.cmake INSTALL_DESTINATION ${TVT_CMAKE_DIR})
 # 0.x: minor versions may break the API, so only the same minor is compatible.
@@ -37,4 +44,6 @@ install(FILES ${PROJECT_BINARY_DIR}/terravtConfig.cmake ${PROJECT_BINARY_DIR}/te
 
 file(RELATIVE_PATH TVT_PC_TO_PREFIX /prefix/${CMAKE_INSTALL_LIBDIR}/pkgconfig /prefix)
 configure_file(${PROJECT_SOURCE_DIR}/cmake/terravt.pc.in ${PROJECT_BINARY_DIR}/terravt.pc @ONLY)
-install(FILES ${PROJECT_BINARY_DIR}/terravt.pc DESTINATION ${CMAKE_INSTALL_LIBDIR}/pkgconfig)
+configure_file(${PROJECT_SOURCE_DIR}/cmake/terravt_compose.pc.in ${PROJECT_BINARY_DIR}/terravt_compose.pc @ONLY)
+install(FILES ${PROJECT_BINARY_DIR}/terravt.pc ${PROJECT_BINARY_DIR}/terravt_compose.pc
+  DESTINATION ${CMAKE_INSTALL_LIBDIR}/pkgconfig)

@@ -16,7 +16,7 @@
 
 namespace tvt {
 
-// What composing a page reads of each material (render/material_uploader.h uploads just this).
+// What composing a page reads of each material (composer/material_uploader.h uploads just this).
 struct MaterialNeeds {
   uint32_t mask = 0;       // bit n: material n and its weight layer (the culling mask)
   uint32_t meta_mask = 0;  // bit n: material n's FBPB meta-texture

@@ -144,6 +144,10 @@ class Context {
   // 1 ... 1 + log2(max(width, height)).
   Image create_image(VkFormat format, uint32_t width, uint32_t height, uint32_t layers, VkImageUsageFlags usage,
                      uint32_t mip_levels = 1);
+  // Someone else's 2D-array image (one mip) and its view, as an Image that never destroys them
+  // (e.g. the VT cache a producer plug-in is handed).
+  static Image borrow_image(VkImage image, VkImageView view, VkFormat format, uint32_t width, uint32_t height,
+                            uint32_t layers);
   // Whether create_image() with these arguments (one mip) fits what the device allows for one
   // image: its format limits (extent, layers, maxResourceSize), the largest single allocation
   // (maxMemoryAllocationSize) and the device-local heap. The error starts with `what` and

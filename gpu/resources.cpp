@@ -114,6 +114,19 @@ Status Context::check_image_fits(VkFormat format, uint32_t width, uint32_t heigh
   return Ok{};
 }
 
+Image Context::borrow_image(VkImage image, VkImageView view, VkFormat format, uint32_t width, uint32_t height,
+                            uint32_t layers) {
+  Image img;  // device_ stays null: reset() destroys nothing
+  img.image_ = image;
+  img.view_ = view;
+  img.format_ = format;
+  img.width_ = width;
+  img.height_ = height;
+  img.layers_ = layers;
+  img.mip_levels_ = 1;
+  return img;
+}
+
 Image Context::create_image(VkFormat format, uint32_t width, uint32_t height, uint32_t layers,
                             VkImageUsageFlags usage, uint32_t mip_levels) {
   TVT_CHECK(width > 0 && height > 0 && layers > 0);

@@ -10,12 +10,8 @@
 
 namespace tvt {
 
-Result<std::unique_ptr<VtSystem>> VtSystem::create(vk::Context& context, const PackedScene& scene,
+Result<std::unique_ptr<VtSystem>> VtSystem::create(vk::Context& context, const VtConfig& vt,
                                                    const VtSystemOptions& options) {
-  VtConfig vt;
-  vt.log2_size = uint32_t(scene.params.log2_vt);
-  vt.page_texels = uint32_t(scene.params.page_texels);
-  vt.border_texels = uint32_t(scene.params.border_texels);
   ResidencyOptions ro;
   ro.slot_count = options.cache_slots;
   ro.window_pages = options.window_pages;
@@ -46,25 +42,19 @@ Result<std::unique_ptr<VtSystem>> VtSystem::create(vk::Context& context, const P
     ctx->transition(cmd, *image, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL);
   });
   std::shared_ptr<PageProducer> producer = options.producer;
-  if (!producer) {
-    BuiltinProducerOptions bo;
-    bo.source = options.source;
-    bo.page_budget = options.page_budget;
-    bo.frames_in_flight = options.frames_in_flight;
-    bo.store = options.store;
-    bo.loader = options.loader;
-    bo.sync_loads = options.sync_loads;
-    bo.scene_hash = options.scene_hash;
-    auto made = make_builtin_producer(context, scene, *cache, bo);
+  if (!producer && options.make_producer) {
+    auto made = options.make_producer(context, *cache);
     if (!made) return made.error();
     producer = std::move(made.value());
   }
+  if (!producer) return make_error("vt: no page producer");
   ro.max_requests_per_frame = std::max(producer->requests_per_frame(), 1u);
 
   std::unique_ptr<VtSystem> v(new VtSystem(vt, ro));
   v->context_ = &context;
   v->vt_ = vt;
   v->options_ = options;
+  v->options_.make_producer = nullptr;  // used once; what it captured is released
   v->cache_ = std::move(cache);
   v->producer_ = std::move(producer);
 

@@ -1,8 +1,9 @@
 // The virtual texture on the GPU: residency policy (vt/), one page producer writing into the
-// physical cache (render/page_producer.h: terravt's composer, stored pages or their hybrid
-// from render/builtin_producers.h, or a client's plug-in), page table (device buffer updated by
-// a GPU scatter) and the state a sampling pass binds (TvtVtInfo, entries, cache image + sampler).
-// The runtime does not know which producer it drives.
+// physical cache (render/page_producer.h: stored pages (render/stored_pages.h), terravt's
+// composer or its hybrid with stored pages (composer/builtin_producers.h), or a client's
+// plug-in), page table (device buffer updated by a GPU scatter) and the state a sampling pass
+// binds (TvtVtInfo, entries, cache image + sampler). The runtime does not know which producer
+// it drives, and knows nothing of scenes: it links no composer, image or scene library.
 //
 // Frame protocol (single queue). Up to frames_in_flight frames may be on the GPU at once: the
 // caller guarantees (gpu/frame_ring.h) that frame f - frames_in_flight has completed before
@@ -24,6 +25,7 @@
 #pragma once
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string_view>
@@ -32,12 +34,11 @@
 #include <string>
 #include <vector>
 
-#include "compose/packed_scene.h"
 #include "gpu/context.h"
-#include "render/builtin_producers.h"
 #include "render/page_producer.h"
 #include "shaders/shared/vt_types.h"
 #include "vt/residency.h"
+#include "vt/vt_config.h"
 
 namespace tvt {
 
@@ -47,21 +48,21 @@ struct VtSystemOptions {
   uint32_t page_budget = 32;           // pages composed per frame at most
   double time_budget_ms = 1e9;         // CPU time for request selection per frame
   uint32_t pinned_mips = 1;            // coarsest mips kept resident
-  VtSource source = VtSource::procedural;
-  std::shared_ptr<const PageStoreReader> store;  // required for stored and hybrid
-  StoredProducerOptions loader;        // threads, staging ring
   uint32_t cancel_after_frames = 4;    // loads no frame has needed for this long are cancelled
-  bool sync_loads = false;             // wait for this frame's loads (comparisons, tests)
-  uint64_t scene_hash = 0;             // checked against the store's (0: unchecked)
+  bool sync_loads = false;             // finish() the producer every frame: this frame's loads land in it
   uint32_t frames_in_flight = 2;       // frames the caller may have on the GPU at once (1 ... 8)
-  // Set: makes every page instead of the built-in source above (source, store, loader and
-  // scene_hash are then unused; page_budget still caps the requests a frame).
+  // The producer of every page (page_budget still caps the requests a frame): `producer`, or
+  // else the one `make_producer` makes once the cache exists (`cache`: the VT's cache image,
+  // its layers the slots, owned by the VtSystem and outliving the producer). One is required.
   std::shared_ptr<PageProducer> producer;
+  using ProducerFactory = std::function<Result<std::shared_ptr<PageProducer>>(vk::Context& context, vk::Image& cache)>;
+  ProducerFactory make_producer;
 };
 
 class VtSystem {
  public:
-  static Result<std::unique_ptr<VtSystem>> create(vk::Context& context, const PackedScene& scene,
+  // `vt`: the geometry (log2_size, page_texels, border_texels).
+  static Result<std::unique_ptr<VtSystem>> create(vk::Context& context, const VtConfig& vt,
                                                   const VtSystemOptions& options);
   ~VtSystem();
 

@@ -43,7 +43,7 @@ TvtVtFootprint tvt_vt_footprint(vec2 dx, vec2 dy, float bias, int max_taps) {
   return fp;
 }
 
-// The LOD a sample actually uses under the mip filter (render/terrain_renderer.h VtMipFilter):
+// The LOD a sample actually uses under the mip filter (app/terrain_renderer.h VtMipFilter):
 // the two mips around `lod` blend only while its fraction f lies within band / 2 of 1/2, the
 // weight of the coarser one ramping linearly from 0 to 1 across the band; elsewhere the result
 // is a whole number, the nearer mip, so one page lookup serves the sample and feedback asks for

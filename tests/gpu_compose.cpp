@@ -11,7 +11,7 @@
 #include "compose/reference_compositor.h"
 #include "compose/region.h"
 #include "compose/scene.h"
-#include "render/gpu_composer.h"
+#include "composer/gpu_composer.h"
 #include "support/file_scene.h"
 #include "support/gpu_test.h"
 #include "support/temp_dir.h"

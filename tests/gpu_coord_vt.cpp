@@ -30,6 +30,7 @@
 #include <random>
 
 #include "compose/packed_scene.h"
+#include "composer/builtin_producers.h"
 #include "render/vt_system.h"
 #include "shaders/shared/compose_coord.h"
 #include "shaders/shared/vt_coord_test_types.h"
@@ -152,11 +153,11 @@ TEST_P(GpuCoordVt, DecodedSamplesAreWithinAFractionOfATexelOfTheAnalyticPosition
   auto packed = pack_scene(assets, options_for(Method::Linear));
   ASSERT_TRUE(packed.ok()) << packed.error().message;
   packed->params.pattern = gpu::TVT_COMPOSE_PATTERN_COORDS;
-  VtSystemOptions o;
+  SceneVtOptions o;
   o.cache_slots = 128;
   o.window_pages = 16;
   o.page_budget = 64;
-  auto created = VtSystem::create(ctx(), packed.value(), o);
+  auto created = create_vt_system(ctx(), packed.value(), o);
   ASSERT_TRUE(created.ok()) << created.error().message;
   VtSystem& s = *created.value();
 

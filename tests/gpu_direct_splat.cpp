@@ -7,7 +7,7 @@
 #include "compose/packed_scene.h"
 #include "compose/scene.h"
 #include "app/flythrough.h"
-#include "render/terrain_renderer.h"
+#include "app/terrain_renderer.h"
 #include "support/gpu_test.h"
 
 using namespace tvt;

@@ -13,6 +13,7 @@
 #include "app/flythrough.h"
 #include "gpu/frame_ring.h"
 #include "render/vt_info.h"
+#include "composer/builtin_producers.h"
 #include "render/vt_system.h"
 #include "support/gpu_test.h"
 
@@ -67,12 +68,12 @@ class GpuFramesInFlight : public GpuTest {};
 TEST_F(GpuFramesInFlight, RingsKeepEveryFramesInputsUntilItCompletes) {
   auto packed = pack_scene(assets14(), options_for(Method::Linear));
   ASSERT_TRUE(packed.ok());
-  VtSystemOptions o;
+  SceneVtOptions o;
   o.cache_slots = 24;
   o.window_pages = 8;  // small windows: the walk recentres them often (bursts of table updates)
   o.page_budget = 6;
   o.frames_in_flight = 3;
-  auto vt = VtSystem::create(ctx(), packed.value(), o);
+  auto vt = create_vt_system(ctx(), packed.value(), o);
   ASSERT_TRUE(vt.ok()) << vt.error().message;
   VtSystem& s = *vt.value();
   auto ring = FrameRing::create(ctx(), o.frames_in_flight);
@@ -201,9 +202,9 @@ TEST_F(GpuFramesInFlight, BadDepthIsAnErrorNamingTheField) {
   EXPECT_NE(ring.error().message.find("frames_in_flight"), std::string::npos);
   auto packed = pack_scene(assets14(), options_for(Method::Linear));
   ASSERT_TRUE(packed.ok());
-  VtSystemOptions o;
+  SceneVtOptions o;
   o.frames_in_flight = 9;
-  auto vt = VtSystem::create(ctx(), packed.value(), o);
+  auto vt = create_vt_system(ctx(), packed.value(), o);
   ASSERT_FALSE(vt.ok());
   EXPECT_NE(vt.error().message.find("frames_in_flight"), std::string::npos);
 }

@@ -1,4 +1,4 @@
-// Lazy material upload (render/material_uploader.h, issue 3 deliverable 3): a material's
+// Lazy material upload (composer/material_uploader.h, issue 3 deliverable 3): a material's
 // weight layer, texture levels and meta-texture reach the GPU with the first recorded page
 // that reads them (compose/material_culling.h MaterialNeeds), never for pages that exclude the
 // material — and the composed pages are byte-identical to uploading everything at create(),
@@ -14,9 +14,10 @@
 #include "compose/packed_scene.h"
 #include "compose/scene.h"
 #include "app/flythrough.h"
-#include "render/gpu_composer.h"
-#include "render/terrain_renderer.h"
+#include "composer/gpu_composer.h"
+#include "app/terrain_renderer.h"
 #include "app/vt_frame_driver.h"
+#include "composer/builtin_producers.h"
 #include "render/vt_system.h"
 #include "compose/reference_compositor.h"
 #include "support/file_scene.h"
@@ -330,7 +331,7 @@ TEST_F(GpuLazyMaterials, ADirectSplatRendererReportsAMaterialThatCannotBeLoaded)
 TEST_F(GpuLazyMaterials, TheFrameDriverReportsAMaterialThatCannotBeLoaded) {
   const SceneWithDeletedMaterial broken("tvt_gpu_lazy_driver");
   const SceneAssets& assets = broken.assets;
-  VtSystemOptions vo;
+  SceneVtOptions vo;
   vo.cache_slots = 64;
   auto vt = make_tool_vt(ctx(), assets, Method::FbpbDpt, vo, vt_feedback_texels(64, 64, 4));
   ASSERT_TRUE(vt);

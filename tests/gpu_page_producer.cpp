@@ -178,56 +178,9 @@ class CheckerProducer final : public terravt::PageProducer {
   uint32_t accepted_ = 0;
 };
 
-struct Readback {
-  std::vector<uint8_t> cache;     // every layer, RGBA8, layer after layer
-  std::vector<uint32_t> entries;  // the page table
-};
-
-Readback read_back(const Client& client, const terravt::VirtualTexture& vt, const terravt::ProducerTarget& t) {
-  auto ctx = vk::Context::adopt(client.h);
-  EXPECT_TRUE(ctx.ok()) << ctx.error().message;
-  const terravt::VirtualTextureBindings b = vt.bindings();
-  const VkDeviceSize layer = VkDeviceSize(t.slot_texels) * t.slot_texels * 4;
-  vk::Buffer cache = (*ctx)->create_buffer(layer * t.slots, VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
-  vk::Buffer table = (*ctx)->create_buffer(b.table_bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
-  (*ctx)->run_commands([&](VkCommandBuffer cmd) {
-    VkBufferImageCopy region{};
-    region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, t.slots};
-    region.imageExtent = {t.slot_texels, t.slot_texels, 1};
-    // GENERAL -> TRANSFER_SRC_OPTIMAL and back: the copy the validation layer wants.
-    VkImageMemoryBarrier to{};
-    to.sType = VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER;
-    to.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
-    to.dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
-    to.oldLayout = VK_IMAGE_LAYOUT_GENERAL;
-    to.newLayout = VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL;
-    to.srcQueueFamilyIndex = to.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
-    to.image = t.cache;
-    to.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, t.slots};
-    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 0, nullptr, 0, nullptr,
-                         1, &to);
-    vkCmdCopyImageToBuffer(cmd, t.cache, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, cache.handle(), 1, &region);
-    VkImageMemoryBarrier back = to;
-    back.srcAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
-    back.dstAccessMask = 0;
-    std::swap(back.oldLayout, back.newLayout);
-    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, 0, 0, nullptr, 0, nullptr,
-                         1, &back);
-    const VkBufferCopy all{0, 0, b.table_bytes};
-    vkCmdCopyBuffer(cmd, b.table_buffer, table.handle(), 1, &all);
-    (*ctx)->memory_barrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
-                                VK_PIPELINE_STAGE_HOST_BIT, VK_ACCESS_HOST_READ_BIT);
-  });
-  Readback r;
-  const auto* c = static_cast<const uint8_t*>(cache.mapped());
-  r.cache.assign(c, c + layer * t.slots);
-  const auto* e = static_cast<const uint32_t*>(table.mapped());
-  r.entries.assign(e, e + b.table_bytes / 4);
-  return r;
-}
-
 terravt::VirtualTextureDesc producer_desc(std::shared_ptr<CheckerProducer> producer) {
-  terravt::VirtualTextureDesc d;  // the built-in scene gives the geometry
+  terravt::VirtualTextureDesc d;  // no scene: libterravt alone, the geometry given
+  d.layout = {16, 128, 4};
   d.cache_slots = 48;
   d.page_budget = 16;
   d.window_pages = 16;

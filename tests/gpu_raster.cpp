@@ -5,7 +5,7 @@
 #include <cstring>
 #include <embedded_shaders.h>
 
-#include "render/render_target.h"
+#include "app/render_target.h"
 #include "support/gpu_test.h"
 
 namespace tvt {

@@ -12,7 +12,7 @@
 #include "compose/scene.h"
 #include "compose/scene_identity.h"
 #include "app/flythrough.h"
-#include "render/gpu_composer.h"
+#include "composer/gpu_composer.h"
 #include "streaming/bake.h"
 #include "streaming/page_store.h"
 #include "support/gpu_test.h"

@@ -1,4 +1,4 @@
-// Terrain raster pass on the GPU (render/terrain_renderer.h): default-scene image sanity and
+// Terrain raster pass on the GPU (app/terrain_renderer.h): default-scene image sanity and
 // determinism, uniform shading of flat ground, no cracks at LOD seams, and the VT texel
 // coordinate at V = 2^24 against the analytic ray/ground intersection.
 // TERRAVT_TEST_OUTPUT_DIR=<dir> also writes the rendered images there as PNG.
@@ -12,7 +12,7 @@
 
 #include "compose/scene.h"
 #include "compose/scene_assets.h"
-#include "render/terrain_renderer.h"
+#include "app/terrain_renderer.h"
 #include "support/gpu_test.h"
 
 namespace tvt {

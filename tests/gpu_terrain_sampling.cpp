@@ -1,4 +1,4 @@
-// Terrain-pass sampling options (render/terrain_renderer.h): the plain pre-composed texture,
+// Terrain-pass sampling options (app/terrain_renderer.h): the plain pre-composed texture,
 // anisotropic VT sampling, the separate feedback pass, and all of them at the far corner of
 // V = 2^24. Validation is on: any message fails a test.
 #include <gtest/gtest.h>
@@ -12,8 +12,8 @@
 #include "compose/packed_scene.h"
 #include "compose/scene.h"
 #include "app/flythrough.h"
-#include "render/plain_texture.h"
-#include "render/terrain_renderer.h"
+#include "app/plain_texture.h"
+#include "app/terrain_renderer.h"
 #include "app/vt_frame_driver.h"
 #include "shaders/shared/feedback_types.h"
 #include "support/gpu_test.h"
@@ -84,7 +84,7 @@ struct FeedbackVt {
   std::unique_ptr<terravt::VirtualTexture> vt;
 };
 void make_feedback_vt(vk::Context& g, FeedbackVt& out) {
-  VtSystemOptions vo;
+  SceneVtOptions vo;
   vo.cache_slots = 256;
   vo.page_budget = 64;
   out.vt = make_tool_vt(g, default_assets(), Method::BlendMap, vo, vt_feedback_texels(320, 180, 4));
@@ -150,7 +150,7 @@ TEST_F(TerrainSamplingTest, PlainTextureLevelZeroIsTheComposedPagesAndTheChainIs
 // most log2(4) = 2 finer), the feedback asks for them, and distant texture keeps more detail.
 TEST_F(TerrainSamplingTest, AnisotropicSamplingReadsFinerMipsAlongGrazingViewsAndKeepsDetail) {
   const SceneAssets& assets = default_assets();
-  VtSystemOptions vo;
+  SceneVtOptions vo;
   vo.cache_slots = 512;
   vo.page_budget = 64;
   const uint32_t w = 192, h = 108;
@@ -337,7 +337,7 @@ TEST_F(TerrainSamplingTest, ExtremeCoordinatesAtTheFarCornerOfTwoPow24) {
   desc.vt.log2_size = 24;
   auto assets = load_scene_assets(desc);
   ASSERT_TRUE(assets.ok()) << assets.error().message;
-  VtSystemOptions vo;
+  SceneVtOptions vo;
   vo.cache_slots = 384;
   vo.page_budget = 64;
   auto vt = make_tool_vt(ctx(), assets.value(), Method::FbpbDpt, vo, vt_feedback_texels(128, 72, 4));

@@ -10,6 +10,7 @@
 #include "gpu/context.h"
 #include "gpu/device_setup.h"
 #include "shared/page_table_entry.h"
+#include "terravt/compose.h"
 #include "terravt/terravt.h"
 #include "support/vt_client.h"
 
@@ -28,7 +29,7 @@ terravt::VirtualTextureDesc small_desc() {
 TEST(VirtualTexture, ComposesTheRequestedPagesIntoTheClientsCommandBuffersAndMapsThem) {
   Client client(2);
   ASSERT_TRUE(client.device);
-  auto created = terravt::VirtualTexture::create(client.h, small_desc());
+  auto created = terravt::compose::create_virtual_texture(client.h, small_desc());
   ASSERT_TRUE(created.ok()) << created.error().message;
   terravt::VirtualTexture& vt = **created;
   const terravt::VirtualTextureInfo info = vt.info();
@@ -84,7 +85,7 @@ TEST(VirtualTexture, ARenderGraphPlacesTheHandedBackDependenciesItself) {
   terravt::VirtualTextureDesc d = small_desc();
   d.consumer_stages = VK_PIPELINE_STAGE_VERTEX_SHADER_BIT | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT;
   d.record_barriers = false;
-  auto created = terravt::VirtualTexture::create(client.h, d);
+  auto created = terravt::compose::create_virtual_texture(client.h, d);
   ASSERT_TRUE(created.ok()) << created.error().message;
   terravt::VirtualTexture& vt = **created;
   const terravt::VirtualTextureDependencies& dep = vt.dependencies();
@@ -123,7 +124,7 @@ TEST(VirtualTexture, ARenderGraphPlacesTheHandedBackDependenciesItself) {
 TEST(VirtualTexture, MisuseOfTheFrameProtocolIsAnErrorAndChangesNothing) {
   Client client(3);
   ASSERT_TRUE(client.device);
-  auto created = terravt::VirtualTexture::create(client.h, small_desc());
+  auto created = terravt::compose::create_virtual_texture(client.h, small_desc());
   ASSERT_TRUE(created.ok()) << created.error().message;
   terravt::VirtualTexture& vt = **created;
   const auto expect_misuse = [](const terravt::Status& s, const char* piece) {
@@ -174,37 +175,37 @@ TEST(VirtualTexture, CreateRefusesADeviceWithoutARequiredFeatureAndBadDescriptio
   VkPhysicalDeviceFeatures2 no_int64 = *h.enabled_features;
   no_int64.features.shaderInt64 = VK_FALSE;  // the same chain otherwise
   h.enabled_features = &no_int64;
-  auto refused = terravt::VirtualTexture::create(h, small_desc());
+  auto refused = terravt::compose::create_virtual_texture(h, small_desc());
   ASSERT_FALSE(refused.ok());
   EXPECT_EQ(refused.error().kind, terravt::ErrorKind::unsupported_device);
   EXPECT_NE(refused.error().message.find("shaderInt64"), std::string::npos) << refused.error().message;
 
   terravt::VirtualTextureDesc d = small_desc();
   d.method = "nonsense";
-  auto bad_method = terravt::VirtualTexture::create(client.h, d);
+  auto bad_method = terravt::compose::create_virtual_texture(client.h, d);
   ASSERT_FALSE(bad_method.ok());
   EXPECT_NE(bad_method.error().message.find("method"), std::string::npos) << bad_method.error().message;
   d = small_desc();
   d.mip_strategy = "supersample:3";
-  auto bad_strategy = terravt::VirtualTexture::create(client.h, d);
+  auto bad_strategy = terravt::compose::create_virtual_texture(client.h, d);
   ASSERT_FALSE(bad_strategy.ok());
   EXPECT_EQ(bad_strategy.error().kind, terravt::ErrorKind::invalid_argument);
   EXPECT_NE(bad_strategy.error().message.find("VirtualTextureDesc::mip_strategy"), std::string::npos)
       << bad_strategy.error().message;
   d.mip_strategy = "supersample:4";  // a valid one is accepted
-  EXPECT_TRUE(terravt::VirtualTexture::create(client.h, d).ok());
+  EXPECT_TRUE(terravt::compose::create_virtual_texture(client.h, d).ok());
   d = small_desc();
   d.source = terravt::PageSource::stored;
-  auto no_store = terravt::VirtualTexture::create(client.h, d);
+  auto no_store = terravt::compose::create_virtual_texture(client.h, d);
   ASSERT_FALSE(no_store.ok());
   EXPECT_NE(no_store.error().message.find("store_file"), std::string::npos) << no_store.error().message;
   d.store_file = "/nonexistent/terravt.tvt";
-  auto missing = terravt::VirtualTexture::create(client.h, d);
+  auto missing = terravt::compose::create_virtual_texture(client.h, d);
   ASSERT_FALSE(missing.ok());
   EXPECT_EQ(missing.error().kind, terravt::ErrorKind::io);
   d = small_desc();
   d.scene_file = "/nonexistent/scene.json";
-  auto no_scene = terravt::VirtualTexture::create(client.h, d);
+  auto no_scene = terravt::compose::create_virtual_texture(client.h, d);
   ASSERT_FALSE(no_scene.ok());
   EXPECT_NE(no_scene.error().message.find("/nonexistent/scene.json"), std::string::npos) << no_scene.error().message;
 }

@@ -14,7 +14,7 @@
 #include "compose/packed_scene.h"
 #include "compose/scene.h"
 #include "app/flythrough.h"
-#include "render/terrain_renderer.h"
+#include "app/terrain_renderer.h"
 #include "app/vt_frame_driver.h"
 #include "support/gpu_test.h"
 
@@ -59,7 +59,7 @@ class GpuVtMatchedLod : public GpuTest {
       scene_ready = true;
     }
     vt.reset();
-    VtSystemOptions vo;
+    SceneVtOptions vo;
     vo.cache_slots = 512;
     vo.page_budget = 64;
     vt = make_tool_vt(ctx(), assets, Method::FbpbDpt, vo, vt_feedback_texels(w, h, 2));

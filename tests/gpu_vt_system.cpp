@@ -7,6 +7,7 @@
 
 #include "compose/packed_scene.h"
 #include "compose/scene.h"
+#include "composer/builtin_producers.h"
 #include "render/vt_system.h"
 #include "support/gpu_test.h"
 
@@ -51,11 +52,11 @@ TEST_F(GpuVtSystem, FeedbackBecomesResidentComposedPagesAndAMatchingGpuTable) {
   ASSERT_TRUE(assets.ok()) << assets.error().message;
   auto packed = pack_scene(assets.value(), options_for(Method::FbpbDpt));
   ASSERT_TRUE(packed.ok());
-  VtSystemOptions o;
+  SceneVtOptions o;
   o.cache_slots = 48;
   o.window_pages = 16;
   o.page_budget = 12;
-  auto vt = VtSystem::create(ctx(), packed.value(), o);
+  auto vt = create_vt_system(ctx(), packed.value(), o);
   ASSERT_TRUE(vt.ok()) << vt.error().message;
   VtSystem& s = *vt.value();
 

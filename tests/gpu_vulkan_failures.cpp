@@ -13,9 +13,11 @@
 #include "compose/packed_scene.h"
 #include "compose/scene_assets.h"
 #include "gpu/context.h"
+#include "composer/builtin_producers.h"
 #include "render/vt_system.h"
 #include "support/counting_allocator.h"
 #include "support/vt_client.h"
+#include "terravt/compose.h"
 #include "terravt/terravt.h"
 
 namespace tvt {
@@ -56,7 +58,7 @@ RunResult drive(Client& client, const terravt::DeviceHandles& h, uint64_t frames
       run.where += "; then " + call + ": " + s.error().message;
     }
   };
-  auto created = terravt::VirtualTexture::create(h, small_desc());
+  auto created = terravt::compose::create_virtual_texture(h, small_desc());
   if (!created) {
     run.first_error = created.error();
     run.where = "create()";
@@ -151,12 +153,12 @@ TEST(VulkanFailures, ALostDeviceIsLatchedAndReturnedByEveryLaterCall) {
   ASSERT_TRUE(assets.ok());
   auto packed = pack_scene(assets.value(), options_for(Method::FbpbDpt));
   ASSERT_TRUE(packed.ok());
-  VtSystemOptions o;
+  SceneVtOptions o;
   o.cache_slots = 32;
   o.page_budget = 8;
   o.window_pages = 8;
   ctx.defer_setup();
-  auto vt = VtSystem::create(ctx, packed.value(), o);
+  auto vt = create_vt_system(ctx, packed.value(), o);
   ASSERT_TRUE(vt.ok()) << vt.error().message;
 
   // What a queue submission or a fence wait returns when the device is lost.
@@ -179,7 +181,7 @@ TEST(VulkanFailures, ALostDeviceIsLatchedAndReturnedByEveryLaterCall) {
   ASSERT_FALSE(recorded.ok());
   EXPECT_EQ(recorded.error().kind, terravt::ErrorKind::device_lost);
   client.submit(0);  // empty: nothing of terravt's was recorded
-  EXPECT_FALSE(VtSystem::create(ctx, packed.value(), o).ok());
+  EXPECT_FALSE(create_vt_system(ctx, packed.value(), o).ok());
   vkDeviceWaitIdle(client.h.device);
 }
 

@@ -12,7 +12,7 @@
 #include <iterator>
 #include <vector>
 
-#include "render/terrain_renderer.h"
+#include "app/terrain_renderer.h"
 #include "support/small_tmpfs.h"
 #include "support/temp_dir.h"
 
@@ -296,7 +296,7 @@ TEST_F(RenderCli, ACameraFileIsFlownWholeUnlessFramesAreGiven) {
 
 }  // namespace
 
-// --vt-filter's names (render/terrain_renderer.h): the named filters, brilinear's band, and
+// --vt-filter's names (app/terrain_renderer.h): the named filters, brilinear's band, and
 // every text that is not one of them, including bands outside [0, 1] and NaN.
 // A write that fails part-way (here the file writes meet a full disk after ~100 KB, a few
 // frames in) fails the run: exit 1, the message names the file and the OS error, no "wrote"

@@ -15,7 +15,7 @@
 #include "compose/packed_scene.h"
 #include "compose/reference_compositor.h"
 #include "compose/region.h"
-#include "render/gpu_composer.h"
+#include "composer/gpu_composer.h"
 #include "shaders/shared/hash.h"
 #include "streaming/pyramid.h"
 #include "tools/bench_frame.h"

@@ -11,7 +11,7 @@
 #include "compose/packed_scene.h"
 #include "compose/reference_compositor.h"
 #include "compose/region.h"
-#include "render/gpu_composer.h"
+#include "composer/gpu_composer.h"
 #include "tools/cli_common.h"
 #include "tools/commands.h"
 

@@ -7,7 +7,7 @@
 
 #include "compose/packed_scene.h"
 #include "compose/scene_assets.h"
-#include "render/gpu_composer.h"
+#include "composer/gpu_composer.h"
 #include "gpu/context.h"
 #include "streaming/bake.h"
 #include "streaming/page_store.h"

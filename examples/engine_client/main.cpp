@@ -5,6 +5,7 @@
 // terravt_sample() and writes requests with terravt_feedback() into a storage buffer, which
 // terravt compacts on the GPU (record_feedback(); --cpu-feedback: the engine reads it back and
 // turns it into terravt::PageRequest's). N frames offscreen; the last is saved as PNG.
+#include <terravt/compose.h>  // the scene and its composer (component `compose`)
 #include <terravt/terravt.h>
 
 #include <algorithm>
@@ -154,8 +155,10 @@ int run(const Args& a) {
   vd.frames_in_flight = kFramesInFlight;
   // The GPU route: terravt compacts the pass's feedback buffer (every texel of it) itself.
   if (!a.cpu_feedback) vd.feedback_texels = engine::feedback_texel_count(a.width, a.height, a.feedback_divisor);
-  auto created = terravt::VirtualTexture::create(handles, vd);
-  if (!created.ok()) return fail("terravt::VirtualTexture::create: " + created.error().message);
+  // Composed from the scene: the compose component. (An engine that streams baked stores only
+  // calls terravt::VirtualTexture::create() with source = stored and links libterravt alone.)
+  auto created = terravt::compose::create_virtual_texture(handles, vd);
+  if (!created.ok()) return fail("terravt::compose::create_virtual_texture: " + created.error().message);
   std::unique_ptr<terravt::VirtualTexture> vt = std::move(created.value());
   const terravt::VirtualTextureInfo info = vt->info();
 

@@ -48,12 +48,30 @@ struct Access;  // terravt's own tools (not part of the API)
 }
 
 enum class PageSource {
-  composed,  // every page composed by terravt's compute shader from the scene's materials
+  composed,  // every page composed by terravt's compute shader from the scene's materials (compose component)
   stored,    // every page read from a baked store (store_file); a missing or bad page falls back to its ancestor
-  hybrid,    // stored where the store has a good page, composed elsewhere
+  hybrid,    // stored where the store has a good page, composed elsewhere (compose component)
 };
 
+// The VT's geometry: level 0 is 2^log2_size texels a side (10 ... 30), pages hold page_texels
+// (a power of two, 16 ... 1024) plus border_texels (at most page_texels / 2) on every side.
+struct VirtualTextureLayout {
+  uint32_t log2_size = 0;  // 0: from the scene (compose component) or the store
+  uint32_t page_texels = 128;
+  uint32_t border_texels = 4;
+};
+
+// What a VirtualTexture is made from. Two entry points take it:
+//   * VirtualTexture::create() (libterravt, terravt::terravt): pages from a baked store
+//     (source stored, geometry from the store) or from a client's producer (geometry from
+//     `layout`). It reads no scene and links no image or scene library; scene_file, method,
+//     mip_strategy and the composed and hybrid sources are refused there (invalid_argument,
+//     naming the compose component).
+//   * terravt::compose::create_virtual_texture() (terravt/compose.h, libterravt_compose,
+//     terravt::compose): everything, from a scene: composed, stored (the store checked against
+//     the scene) and hybrid pages, or a client's producer over the scene's geometry.
 struct VirtualTextureDesc {
+  // The scene and how it is composed: compose component only.
   std::string scene_file;            // JSON scene (docs/scene-format.md); empty: the built-in scene
   std::string method = "fbpb+dpt2";  // transition method: linear, blendmap, fbpb, dpt1, dpt2, fbpb+dpt2
   // How composed pages of mip >= 1 are made: "direct" (one sample per texel) or "supersample:S"
@@ -63,9 +81,12 @@ struct VirtualTextureDesc {
   std::string mip_strategy = "direct";
   PageSource source = PageSource::composed;
   std::string store_file;            // the baked store, for stored and hybrid
-  // Set: this producer makes every page instead of `source` (terravt/page_producer.h); the
-  // scene still gives the VT's geometry. Shared: the client may keep it to drive or inspect.
+  // Set: this producer makes every page instead of `source` (terravt/page_producer.h). Shared:
+  // the client may keep it to drive or inspect.
   std::shared_ptr<PageProducer> producer;
+  // The geometry. Required by VirtualTexture::create() with a producer; otherwise left at
+  // log2_size 0 it comes from the scene or the store, and set it must equal theirs.
+  VirtualTextureLayout layout;
   uint32_t cache_slots = 256;        // pages the physical cache holds
   uint32_t page_budget = 32;         // pages composed per frame at most
   uint32_t window_pages = 64;        // page-table window per mip, entries per side

@@ -1,4 +1,4 @@
-// Terrain raster pass (terrain.vert / terrain.frag, render/terrain_renderer.cpp): bindings,
+// Terrain raster pass (terrain.vert / terrain.frag, app/terrain_renderer.cpp): bindings,
 // the frame uniform block, the per-chunk push constants and the heightfield addressing
 // shared bit for bit by the vertex shader and the CPU (terrain/terrain_mesh.cpp).
 // GLSL must enable GL_EXT_shader_explicit_arithmetic_types_int64 before including this.

@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # Installs terravt from a build tree into a temporary prefix and checks the package as an engine
-# sees it: only public headers, none pulling a private dependency; libterravt exports only
-# terravt:: symbols, carries its SONAME and imports no Vulkan function; libterravt.a links a
-# client on its own (COMPONENTS static); find_package(terravt CONFIG) and pkg-config both
-# build a client that runs. Usage: check_package.sh BUILD_DIR SOURCE_DIR
+# sees it: only public headers, none pulling a private dependency; libterravt and
+# libterravt_compose export only terravt:: symbols, carry their SONAMEs and import no Vulkan
+# function; a client that streams baked stores (libterravt alone) links no OpenImageIO, OpenCV
+# or other compose-side library; libterravt.a and libterravt_compose.a link a client on their
+# own (COMPONENTS static [compose]); find_package(terravt CONFIG) and pkg-config both build
+# clients that run. Usage: check_package.sh BUILD_DIR SOURCE_DIR
 set -euo pipefail
 build=$1
 src=$2
@@ -55,30 +57,56 @@ if out=$(glslangValidator -V -I"$prefix/include" "$work/nomacros.frag" -o /dev/n
 fi
 echo "$out" | grep -q "define TERRAVT_VT_BINDING_INFO" || { echo "FAIL: no clear error: $out"; exit 1; }
 
-lib=$(find "$prefix" -name 'libterravt.so.*.*.*' | head -n 1)
-[ -n "$lib" ] || { echo "FAIL: no versioned libterravt.so installed"; exit 1; }
-soname=$(objdump -p "$lib" | awk '/SONAME/ {print $2}')
-case "$soname" in libterravt.so.[0-9]*) ;; *) echo "FAIL: SONAME is '$soname'"; exit 1 ;; esac
-# Exports: terravt:: functions only (hidden visibility everywhere else), plus the vtable and
-# typeinfo of the exported interface a client derives from (terravt::PageProducer). The
-# standard library's own templates keep default visibility and come out as weak
-# (vague-linkage) symbols; those are the C++ ABI's, not terravt's.
-leaked=$(nm -D --defined-only -C "$lib" | awk '$2 ~ /[TWBDRVu]/' |
-         awk '!($2 ~ /[WVu]/ && $0 ~ /std::/)' | cut -d' ' -f3- |
-         grep -vE '^((vtable|typeinfo|typeinfo name) for )?terravt::' | grep -vE '^(_init|_fini|__bss_start|_edata|_end)$' || true)
-if [ -n "$leaked" ]; then echo "FAIL: libterravt exports non-API symbols:"; echo "$leaked" | head -20; exit 1; fi
+check_shared_lib() {  # check_shared_lib NAME: the installed libNAME.so.X.Y.Z; sets $lib
+  lib=$(find "$prefix" -name "lib$1.so.*.*.*" | head -n 1)
+  [ -n "$lib" ] || { echo "FAIL: no versioned lib$1.so installed"; exit 1; }
+  soname=$(objdump -p "$lib" | awk '/SONAME/ {print $2}')
+  case "$soname" in lib$1.so.[0-9]*) ;; *) echo "FAIL: SONAME of lib$1 is '$soname'"; exit 1 ;; esac
+  # Exports: terravt:: functions only (hidden visibility everywhere else), plus the vtable and
+  # typeinfo of the exported interface a client derives from (terravt::PageProducer). The
+  # standard library's own templates keep default visibility and come out as weak
+  # (vague-linkage) symbols; those are the C++ ABI's, not terravt's.
+  leaked=$(nm -D --defined-only -C "$lib" | awk '$2 ~ /[TWBDRVu]/' |
+           awk '!($2 ~ /[WVu]/ && $0 ~ /std::/)' | cut -d' ' -f3- |
+           grep -vE '^((vtable|typeinfo|typeinfo name) for )?terravt::' | grep -vE '^(_init|_fini|__bss_start|_edata|_end)$' || true)
+  if [ -n "$leaked" ]; then echo "FAIL: lib$1 exports non-API symbols:"; echo "$leaked" | head -20; exit 1; fi
+  # Vulkan through the client's vkGetInstanceProcAddr only: no Vulkan function imported, no
+  # loader linked (an engine that loads Vulkan its own way gets no second loader).
+  vk_imports=$(nm -D --undefined-only "$lib" | awk '{print $NF}' | grep -E '^vk' || true)
+  if [ -n "$vk_imports" ]; then echo "FAIL: lib$1 calls the Vulkan loader directly:"; echo "$vk_imports" | head; exit 1; fi
+  if objdump -p "$lib" | grep -E 'NEEDED +libvulkan' >/dev/null; then
+    echo "FAIL: lib$1 links libvulkan"; exit 1
+  fi
+}
+# What the compose component brings and a store-streaming client must not load.
+compose_deps='libOpenImageIO|libopencv|libavcodec|libgdal|libgst|libpng|libjpeg|libtiff|libOpenEXR'
+check_no_compose_deps() {  # check_no_compose_deps BINARY: neither it nor what it loads needs them
+  local found
+  found=$( { objdump -p "$1" | awk '/NEEDED/ {print $2}'; ldd "$1" | awk '{print $1}'; } | grep -E "$compose_deps" || true)
+  if [ -n "$found" ]; then echo "FAIL: $1 loads compose-side libraries:"; echo "$found" | sort -u | head; exit 1; fi
+}
+run_compose_client() {  # run_compose_client BINARY: runs it and checks it reached the compose component
+  local out
+  out=$("$1") || { echo "$out"; echo "FAIL: $1 failed"; exit 1; }
+  case "$out" in *"compose component linked"*) ;; *) echo "$out"; echo "FAIL: $1 did not call the compose component"; exit 1 ;; esac
+}
+check_shared_lib terravt_compose
+compose_lib=$lib
+objdump -p "$compose_lib" | grep -E 'NEEDED +libterravt\.so' >/dev/null ||
+  { echo "FAIL: libterravt_compose does not build on libterravt.so"; exit 1; }
+check_shared_lib terravt
+check_no_compose_deps "$lib"
+echo "libterravt loads $(ldd "$lib" | wc -l) libraries; libterravt_compose $(ldd "$compose_lib" | wc -l)"
 
-# Vulkan through the client's vkGetInstanceProcAddr only: libterravt imports no Vulkan function
-# and does not link the loader (an engine that loads Vulkan its own way gets no second loader).
-vk_imports=$(nm -D --undefined-only "$lib" | awk '{print $NF}' | grep -E '^vk' || true)
-if [ -n "$vk_imports" ]; then echo "FAIL: libterravt calls the Vulkan loader directly:"; echo "$vk_imports" | head; exit 1; fi
-if objdump -p "$lib" | grep -E 'NEEDED +libvulkan' >/dev/null; then
-  echo "FAIL: libterravt links libvulkan"; exit 1
-fi
-
-# find_package(terravt CONFIG)
+# find_package(terravt CONFIG): a client that streams stores links libterravt alone...
 tvt_build_client "$src/tests/package" "$work/consumer"
+check_no_compose_deps "$work/consumer/consumer"
 "$work/consumer/consumer"
+# ... and with COMPONENTS compose the compose component too.
+tvt_build_client "$src/tests/package" "$work/consumer_compose" -DTVT_COMPOSE=ON
+objdump -p "$work/consumer_compose/consumer" | grep -E 'NEEDED +libterravt_compose' >/dev/null ||
+  { echo "FAIL: the compose client does not link libterravt_compose"; exit 1; }
+run_compose_client "$work/consumer_compose/consumer"
 
 # find_package(terravt CONFIG COMPONENTS static): the same client from libterravt.a alone.
 [ -f "$(dirname "$lib")/libterravt.a" ] || { echo "FAIL: no libterravt.a installed"; exit 1; }
@@ -86,7 +114,14 @@ tvt_build_client "$src/tests/package" "$work/consumer_static" -DTVT_STATIC=ON
 if objdump -p "$work/consumer_static/consumer" | grep -E 'NEEDED +libterravt' >/dev/null; then
   echo "FAIL: the static client still needs libterravt.so"; exit 1
 fi
+check_no_compose_deps "$work/consumer_static/consumer"
 "$work/consumer_static/consumer"
+[ -f "$(dirname "$lib")/libterravt_compose.a" ] || { echo "FAIL: no libterravt_compose.a installed"; exit 1; }
+tvt_build_client "$src/tests/package" "$work/consumer_compose_static" -DTVT_STATIC=ON -DTVT_COMPOSE=ON
+if objdump -p "$work/consumer_compose_static/consumer" | grep -E 'NEEDED +libterravt' >/dev/null; then
+  echo "FAIL: the static compose client still needs a libterravt shared library"; exit 1
+fi
+run_compose_client "$work/consumer_compose_static/consumer"
 # A component that does not exist is refused by find_package.
 mkdir -p "$work/bad_component"
 cat > "$work/bad_component/CMakeLists.txt" <<'CMAKE'
@@ -102,4 +137,7 @@ fi
 export PKG_CONFIG_PATH=$(dirname "$(find "$prefix" -name terravt.pc)")
 c++ -std=c++20 "$src/tests/package/consumer.cpp" -o "$work/consumer_pc" $(pkg-config --cflags --libs terravt)
 LD_LIBRARY_PATH=$(dirname "$lib") "$work/consumer_pc"
+c++ -std=c++20 -DTVT_WITH_COMPOSE "$src/tests/package/consumer.cpp" -o "$work/consumer_compose_pc" \
+  $(pkg-config --cflags --libs terravt_compose)
+LD_LIBRARY_PATH=$(dirname "$lib") run_compose_client "$work/consumer_compose_pc"
 echo "package ok: $soname"

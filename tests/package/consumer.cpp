@@ -1,7 +1,12 @@
 // Uses the installed public API only: version, requirements, and the check of a device that
 // was never handed in, by check_device() and VirtualTexture::create() (errors as values, never
-// an abort).
+// an abort). Built with TVT_WITH_COMPOSE, it also calls the compose component
+// (terravt::compose::create_virtual_texture); without, it is a client that streams baked
+// stores and must not link the compose component's libraries (checked by check_package.sh).
 #include <terravt/terravt.h>
+#ifdef TVT_WITH_COMPOSE
+#include <terravt/compose.h>
+#endif
 
 #include <cstdio>
 #include <cstring>
@@ -33,6 +38,15 @@ int main() {
     std::printf("FAIL: VirtualTexture::create on empty handles: %s\n", vt.ok() ? "accepted" : vt.error().message.c_str());
     return 1;
   }
+#ifdef TVT_WITH_COMPOSE
+  auto composed = terravt::compose::create_virtual_texture(terravt::DeviceHandles{}, terravt::VirtualTextureDesc{});
+  if (composed.ok() || composed.error().message.find("DeviceHandles::") == std::string::npos) {
+    std::printf("FAIL: compose::create_virtual_texture on empty handles: %s\n",
+                composed.ok() ? "accepted" : composed.error().message.c_str());
+    return 1;
+  }
+  std::printf("compose component linked\n");
+#endif
   std::printf("terravt %s: %zu features (%d required); empty handles: %s\n", terravt::version_string(),
               r.features.size(), required, s.error().message.c_str());
   return 0;

@@ -80,7 +80,7 @@ void GpuTest::TearDown() {
 }
 
 std::unique_ptr<terravt::VirtualTexture> make_tool_vt(vk::Context& g, const SceneAssets& assets, Method method,
-                                                      const VtSystemOptions& options, uint32_t feedback_texels) {
+                                                      const SceneVtOptions& options, uint32_t feedback_texels) {
   terravt::detail::ToolVirtualTexture td;
   td.assets = &assets;
   td.method = method;

@@ -6,7 +6,7 @@
 
 #include <string>
 
-#include "api/tool_access.h"
+#include "api/compose/tool_vt.h"
 #include "gpu/context.h"
 
 namespace tvt {
@@ -25,7 +25,7 @@ void expect_no_validation_messages(vk::Context& ctx);
 // api/tool_access.h): for tests that converge a view with VtFrameDriver. Fails the test (ASSERT)
 // when creation fails; `feedback_texels` is the writer's (vt_feedback_texels()).
 std::unique_ptr<terravt::VirtualTexture> make_tool_vt(vk::Context& g, const SceneAssets& assets, Method method,
-                                                      const VtSystemOptions& options, uint32_t feedback_texels);
+                                                      const SceneVtOptions& options, uint32_t feedback_texels);
 
 // Fixture for GPU tests. SetUp fails the test (GTEST_FAIL, not skip) when there is no usable
 // Vulkan device; TearDown calls expect_no_validation_messages() on the shared context.

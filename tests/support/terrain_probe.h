@@ -4,7 +4,7 @@
 #include <cstring>
 #include <vector>
 
-#include "render/terrain_renderer.h"
+#include "app/terrain_renderer.h"
 
 namespace tvt::test {
 

@@ -1,4 +1,4 @@
-#include "render/vt_debug.h"
+#include "app/vt_debug.h"
 
 #include <algorithm>
 #include <cstring>

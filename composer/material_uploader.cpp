@@ -1,4 +1,4 @@
-#include "render/material_uploader.h"
+#include "composer/material_uploader.h"
 
 #include <algorithm>
 #include <bit>

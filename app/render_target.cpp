@@ -1,5 +1,5 @@
 // Off-screen render target (see render_target.h for the layout contract).
-#include "render/render_target.h"
+#include "app/render_target.h"
 
 #include <cstring>
 

@@ -2,7 +2,7 @@
 // into layers of a storage image (RGBA8, (P+2B)^2 per layer). Planned once from a
 // PackedScene, then only records. Not thread-safe; one queue.
 //
-// Materials are uploaded lazily by default (render/material_uploader.h): record() uploads what
+// Materials are uploaded lazily by default (composer/material_uploader.h): record() uploads what
 // its pages read for the first time (weight layer, texture levels, meta-texture; exactly as
 // compose/material_culling.h predicts) just before their dispatch. Output is byte-identical to
 // uploading everything at create().
@@ -14,7 +14,7 @@
 
 #include "compose/material_culling.h"
 #include "compose/packed_scene.h"
-#include "render/material_uploader.h"
+#include "composer/material_uploader.h"
 #include "gpu/context.h"
 #include "vt/vt_config.h"
 

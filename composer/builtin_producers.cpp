@@ -1,4 +1,4 @@
-#include "render/builtin_producers.h"
+#include "composer/builtin_producers.h"
 
 #include <algorithm>
 
@@ -75,40 +75,6 @@ class ComposedPages final : public PageProducer {
   std::vector<PageRequest> cancelled_;
 };
 
-// Pages of a baked store, loaded on the loader's threads and copied into the cache when ready.
-class StoredPages final : public PageProducer {
- public:
-  StoredPages(std::unique_ptr<StoredProducer> loader, vk::Image& cache, uint32_t per_frame)
-      : loader_(std::move(loader)), cache_(&cache), per_frame_(per_frame) {}
-
-  uint32_t requests_per_frame() const override { return per_frame_; }
-  void begin_frame(uint64_t) override { loader_->begin_frame(); }
-  bool has(const PageId& page) const { return loader_->has(page); }
-  ProducerAccept request(const PageRequest& r) override {
-    if (!loader_->has(r.page)) return ProducerAccept::unavailable;
-    return loader_->request(r) ? ProducerAccept::accepted : ProducerAccept::busy;
-  }
-  void cancel(const PageId& page) override { loader_->cancel(page); }
-  void finish() override { loader_->wait_idle(); }
-  // The loads finished since the last call; the ready ones are copied by copy().
-  void collect(ProducerOutcome& out) { loader_->poll(out.written, out.failed, out.cancelled); }
-  void copy(VkCommandBuffer cmd) { loader_->record(cmd, *cache_); }
-  Status record(VkCommandBuffer cmd, ProducerOutcome& out) override {
-    collect(out);
-    copy(cmd);
-    return Ok{};
-  }
-  void end_frame() override { loader_->end_frame(); }
-  void add_stats(VtFrameStats& s) const override { s.stored = loader_->stats(); }
-  std::vector<std::string> take_error_messages() override { return loader_->take_error_messages(); }
-  uint64_t gpu_bytes() const override { return loader_->gpu_bytes(); }
-
- private:
-  std::unique_ptr<StoredProducer> loader_;
-  vk::Image* cache_;
-  uint32_t per_frame_;
-};
-
 // Stored where the store has the page, composed elsewhere and where a stored page failed.
 class HybridPages final : public PageProducer {
  public:
@@ -178,24 +144,48 @@ Result<std::unique_ptr<PageProducer>> make_builtin_producer(vk::Context& context
   if (!streams) return std::unique_ptr<PageProducer>(std::move(composed));
 
   if (!options.store) return make_error("source: '" + std::string(to_string(options.source)) + "' needs a page store");
-  StoredProducerOptions lo = options.loader;
-  lo.frames_in_flight = options.frames_in_flight;
-  // Async loads may be outstanding on top of the pages composed this frame; a synchronous run
-  // asks for exactly what a procedural run would, so its frames match one for one. Staging is
-  // released frames_in_flight frames after its copy was recorded.
-  uint32_t per_frame = options.page_budget + lo.staging_slots;
-  if (options.sync_loads) {
-    lo.staging_slots = std::max(lo.staging_slots, options.page_budget * options.frames_in_flight);
-    per_frame = options.page_budget;
-  }
-  auto loader = StoredProducer::create(context, options.store, VtConfig{uint32_t(scene.params.log2_vt),
-                                                                        uint32_t(scene.params.page_texels),
-                                                                        uint32_t(scene.params.border_texels)},
-                                       options.scene_hash, lo);
-  if (!loader) return loader.error();
-  auto stored = std::make_unique<StoredPages>(std::move(loader.value()), cache, per_frame);
-  if (!composes) return std::unique_ptr<PageProducer>(std::move(stored));
-  return std::unique_ptr<PageProducer>(std::make_unique<HybridPages>(std::move(stored), std::move(composed), per_frame));
+  StoredPagesOptions so;
+  so.page_budget = options.page_budget;
+  so.frames_in_flight = options.frames_in_flight;
+  so.loader = options.loader;
+  so.sync_loads = options.sync_loads;
+  so.scene_hash = options.scene_hash;
+  auto stored = StoredPages::create(context, options.store, cache, scene_vt_config(scene), so);
+  if (!stored) return stored.error();
+  if (!composes) return std::unique_ptr<PageProducer>(std::move(stored.value()));
+  const uint32_t per_frame = stored.value()->requests_per_frame();
+  return std::unique_ptr<PageProducer>(
+      std::make_unique<HybridPages>(std::move(stored.value()), std::move(composed), per_frame));
+}
+
+VtConfig scene_vt_config(const PackedScene& scene) {
+  return VtConfig{uint32_t(scene.params.log2_vt), uint32_t(scene.params.page_texels), uint32_t(scene.params.border_texels)};
+}
+
+VtSystemOptions with_builtin_producer(const PackedScene& scene, const SceneVtOptions& options) {
+  VtSystemOptions o = options;
+  if (o.producer) return o;
+  BuiltinProducerOptions bo;
+  bo.source = options.source;
+  bo.page_budget = options.page_budget;
+  bo.frames_in_flight = options.frames_in_flight;
+  bo.store = options.store;
+  bo.loader = options.loader;
+  bo.sync_loads = options.sync_loads;
+  bo.scene_hash = options.scene_hash;
+  // A copy: the factory may outlive the caller's scene (PackedScene copies share their caches).
+  o.make_producer = [scene = std::make_shared<const PackedScene>(scene), bo](vk::Context& context, vk::Image& cache)
+      -> Result<std::shared_ptr<PageProducer>> {
+    auto made = make_builtin_producer(context, *scene, cache, bo);
+    if (!made) return made.error();
+    return std::shared_ptr<PageProducer>(std::move(made.value()));
+  };
+  return o;
+}
+
+Result<std::unique_ptr<VtSystem>> create_vt_system(vk::Context& context, const PackedScene& scene,
+                                                   const SceneVtOptions& options) {
+  return VtSystem::create(context, scene_vt_config(scene), with_builtin_producer(scene, options));
 }
 
 }  // namespace tvt

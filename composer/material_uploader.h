@@ -23,26 +23,9 @@
 #include "compose/material_culling.h"
 #include "compose/packed_scene.h"
 #include "gpu/context.h"
+#include "render/page_producer.h"  // MaterialUploadStats
 
 namespace tvt {
-
-// What is on the GPU. Bytes count texture levels + meta-texture + weight layer.
-struct MaterialUploadStats {
-  uint32_t materials = 0;           // in the scene
-  uint32_t resident = 0;            // materials with anything on the GPU
-  uint32_t resident_mask = 0;       // bit n: material n's weight layer (and some levels) are there
-  uint32_t complete_mask = 0;       // bit n: all of material n is there
-  uint64_t bytes_total = 0;         // what uploading everything copies
-  uint64_t bytes_uploaded = 0;      // copied so far (each byte once)
-  uint32_t last_materials = 0;      // materials that got data from the latest record() / upload_all()
-  uint64_t last_bytes = 0;          // bytes the latest record() / upload_all() copied
-  // CPU side (compose/material_source.h): materials read from disk or generated on first use.
-  uint32_t cpu_loaded = 0;          // materials whose texels are in host memory
-  uint32_t last_cpu_loaded = 0;     // materials the latest record() / upload_all() loaded
-  double cpu_load_ms = 0.0;         // wall time of those loads, summed over all calls
-  double last_cpu_load_ms = 0.0;    // ... of the latest record() / upload_all()
-  uint32_t load_failures = 0;       // record() / upload_all() calls that met a load error
-};
 
 class MaterialUploader {
  public:

@@ -1,10 +1,10 @@
 // Plain pre-composed texture (see plain_texture.h).
-#include "render/plain_texture.h"
+#include "app/plain_texture.h"
 
 #include <chrono>
 #include <vector>
 
-#include "render/gpu_composer.h"
+#include "composer/gpu_composer.h"
 
 namespace tvt {
 

@@ -1,4 +1,4 @@
-#include "render/gpu_composer.h"
+#include "composer/gpu_composer.h"
 
 #include <embedded_shaders.h>
 

@@ -17,9 +17,9 @@
 
 #include "compose/scene_assets.h"
 #include "terrain/camera.h"
-#include "render/gpu_composer.h"
-#include "render/plain_texture.h"
-#include "render/render_target.h"
+#include "composer/gpu_composer.h"
+#include "app/plain_texture.h"
+#include "app/render_target.h"
 #include "terrain/terrain_mesh.h"
 #include "gpu/context.h"
 #include "shared/terrain_types.h"
@@ -121,7 +121,7 @@ struct TerrainDirectInputs {
   VtMipFilter mip_filter = VtMipFilter::Trilinear;  // matched_lod: the VT filter to match
 };
 
-// Plain-texture mode: one mip-mapped texture over the terrain (render/plain_texture.h), which
+// Plain-texture mode: one mip-mapped texture over the terrain (app/plain_texture.h), which
 // must outlive the renderer.
 struct TerrainPlainInputs {
   const PlainTexture* texture = nullptr;

@@ -1,5 +1,5 @@
 // Terrain raster pass (see terrain_renderer.h, docs/renderer.md).
-#include "render/terrain_renderer.h"
+#include "app/terrain_renderer.h"
 
 #include <algorithm>
 #include <bit>

@@ -1,0 +1,23 @@
+// The scene side of a VirtualTexture, shared by the compose component's public entry point
+// (terravt::compose::create_virtual_texture, api/compose/compose_vt.cpp) and terravt's tools
+// (api/compose/tool_vt.h): the scene packed for a method and mip strategy, and the store a
+// stored or hybrid source reads, checked against the scene it was baked from.
+#pragma once
+#include <memory>
+#include <string>
+
+#include "compose/packed_scene.h"
+#include "compose/scene_assets.h"
+#include "streaming/page_store.h"
+#include "terravt/error.h"
+#include "vt/vt_config.h"
+
+namespace terravt::detail {
+
+// Opens `path` and checks it against the scene: geometry, page format and scene identity
+// (scene + method + mip strategy, for the store's pyramid). Errors name the store and field.
+Result<std::shared_ptr<const tvt::PageStoreReader>> open_scene_store(const std::string& path,
+                                                                     const tvt::SceneAssets& assets, tvt::Method method,
+                                                                     tvt::MipStrategy strategy);
+
+}  // namespace terravt::detail
