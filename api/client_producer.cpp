@@ -62,10 +62,9 @@ tvt::Status ClientProducer::record(VkCommandBuffer cmd, tvt::ProducerOutcome& ou
   written_count_ = uint32_t(out.written.size() - written_before);
   if (!s) {
     // A failed Vulkan call keeps its kind and VkResult (the VirtualTexture latches it); any
-    // other failure is the producer's.
+    // other failure, host memory included, is the producer's and passes.
     const Error& e = s.error();
-    const bool device_level = e.vk_result != 0 || e.kind == ErrorKind::vulkan || e.kind == ErrorKind::device_lost ||
-                              e.kind == ErrorKind::out_of_memory;
+    const bool device_level = e.vk_result != 0 || e.kind == ErrorKind::vulkan || e.kind == ErrorKind::device_lost;
     return Error{device_level ? e.kind : ErrorKind::producer_failed, "page producer: " + e.message, e.vk_result};
   }
   if (!contract.empty())

@@ -2,6 +2,7 @@
 // producer (render/page_producer.h): translates pages and answers, and holds the client to the
 // contract — only pages it accepted and still owns may be reported, each once.
 #pragma once
+#include <algorithm>
 #include <memory>
 #include <string>
 #include <unordered_map>
@@ -14,9 +15,13 @@ namespace terravt::detail {
 
 class ClientProducer final : public tvt::PageProducer {
  public:
-  // `per_frame`: the most requests offered a frame (VirtualTextureDesc::page_budget).
-  ClientProducer(std::shared_ptr<terravt::PageProducer> client, uint32_t per_frame)
-      : client_(std::move(client)), per_frame_(per_frame) {}
+  // The most requests offered a frame: the client's requests_per_frame(), or `page_budget`
+  // when it says 0; never more than `slots` (VirtualTextureDesc::page_budget, cache_slots).
+  ClientProducer(std::shared_ptr<terravt::PageProducer> client, uint32_t page_budget, uint32_t slots)
+      : client_(std::move(client)) {
+    const uint32_t wanted = client_->requests_per_frame();
+    per_frame_ = std::min(wanted == 0 ? page_budget : wanted, slots);
+  }
 
   uint32_t requests_per_frame() const override { return per_frame_; }
   void begin_frame(uint64_t frame) override { client_->begin_frame(frame); }

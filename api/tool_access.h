@@ -4,7 +4,7 @@
 // device they made (vk::Context::device_handles()). From here they get:
 //   * make(): the one constructor every VirtualTexture goes through, with every runtime option
 //     (stored-page loader threads, synchronous loads, pinned mips) and the producer or its
-//     factory; the tools' scene VTs (composer/tool_vt.h) are made with it;
+//     factory; the tools' scene VTs (api/compose/tool_vt.h) are made with it;
 //   * runtime(): the runtime under a VirtualTexture, for the statistics, debug views and
 //     read-backs the CLI reports (composed and loaded pages, residency, cache atlas).
 // A tool that drives the runtime through runtime() directly (begin_frame/record) bypasses the

@@ -61,8 +61,8 @@ Error needs_compose(const std::string& field, const std::string& what) {
 }  // namespace
 
 struct VirtualTexture::Impl {
-  VirtualTextureDesc desc;
   std::unique_ptr<tvt::vk::Context> context;  // declared first: destroyed last
+  VirtualTextureDesc desc;                    // holds the client's producer (shared)
   tvt::VtConfig config;                       // the geometry
   std::unique_ptr<tvt::VtSystem> vt;
   std::vector<tvt::PageFeedback> feedback;
@@ -107,7 +107,7 @@ uint32_t Access::feedback_texels(const VirtualTexture& vt) { return vt.impl_->de
 
 // The one path from a device to a VirtualTexture: create() (a store or a client's producer),
 // the compose component (terravt/compose.h: its producers are client producers too) and
-// terravt's tools (composer/tool_vt.h) all end here. `o` holds the runtime's options and the
+// terravt's tools (api/compose/tool_vt.h) all end here. `o` holds the runtime's options and the
 // producer (or its factory).
 Result<std::unique_ptr<VirtualTexture>> Access::make(const DeviceHandles& device, const VirtualTextureDesc& desc,
                                                      const tvt::VtConfig& config, tvt::VtSystemOptions o) {
@@ -141,7 +141,7 @@ Result<std::unique_ptr<VirtualTexture>> Access::make(const DeviceHandles& device
   o.page_budget = desc.page_budget;
   o.window_pages = desc.window_pages;
   o.frames_in_flight = desc.frames_in_flight;
-  if (desc.producer) o.producer = std::make_shared<detail::ClientProducer>(desc.producer, desc.page_budget);
+  if (desc.producer) o.producer = std::make_shared<detail::ClientProducer>(desc.producer, desc.page_budget, desc.cache_slots);
   auto vt = tvt::VtSystem::create(*impl->context, config, o);
   if (!vt) return as_input_error(vt.error());
   impl->vt = std::move(vt.value());
@@ -186,7 +186,7 @@ Status detail::Access::check_desc(const DeviceHandles& device, const VirtualText
   if (desc.source != PageSource::composed && desc.store_file.empty() && !desc.producer)
     return invalid("VirtualTextureDesc::store_file: a stored or hybrid source needs a store");
   if (desc.consumer_stages == 0) return invalid("VirtualTextureDesc::consumer_stages: name at least one stage");
-  // The device first: a device terravt cannot run on is the first thing to hear about.
+  // Then the device, before any file is read or anything made on it.
   return check_device(device);
 }
 
@@ -206,6 +206,8 @@ Result<std::unique_ptr<VirtualTexture>> VirtualTexture::create(const DeviceHandl
   if (!opened) return Error{ErrorKind::io, opened.error().message};
   std::shared_ptr<const tvt::PageStoreReader> store = std::move(opened.value());
   const tvt::VtConfig config = store->desc().vt;
+  // Its page format, before anything is made on the device.
+  if (auto m = tvt::StoredProducer::matches(*store, config, 0); !m) return invalid(m.error().message);
   if (l.log2_size != 0 && (l.log2_size != config.log2_size || l.page_texels != config.page_texels ||
                            l.border_texels != config.border_texels))
     return invalid("VirtualTextureDesc::layout: (log2_size " + std::to_string(l.log2_size) + ", page_texels " +
@@ -342,8 +344,7 @@ Status VirtualTexture::record(VkCommandBuffer cmd) {
   m.stats.resident = vs.residency.resident;
   if (!s) {
     const Error& e = s.error();
-    if (e.vk_result != 0 || e.kind == ErrorKind::vulkan || e.kind == ErrorKind::device_lost ||
-        e.kind == ErrorKind::out_of_memory) {
+    if (e.vk_result != 0 || e.kind == ErrorKind::vulkan || e.kind == ErrorKind::device_lost) {
       if (!m.device_error && m.context->status()) m.device_error = e;  // the producer's device failure stays
       return m.device_status();
     }

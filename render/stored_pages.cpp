@@ -10,17 +10,16 @@ Result<std::unique_ptr<StoredPages>> StoredPages::create(vk::Context& context, s
   if (!store) return make_error("source: stored pages need a page store");
   StoredProducerOptions lo = options.loader;
   lo.frames_in_flight = options.frames_in_flight;
-  // Async loads may be outstanding on top of the pages composed this frame; a synchronous run
-  // asks for exactly what a procedural run would, so its frames match one for one. Staging is
-  // released frames_in_flight frames after its copy was recorded.
-  uint32_t per_frame = options.page_budget + lo.staging_slots;
-  if (options.sync_loads) {
-    lo.staging_slots = std::max(lo.staging_slots, options.page_budget * options.frames_in_flight);
-    per_frame = options.page_budget;
-  }
+  // Staging is released frames_in_flight frames after its copy was recorded.
+  if (options.sync_loads) lo.staging_slots = std::max(lo.staging_slots, options.page_budget * options.frames_in_flight);
+  const uint32_t per_frame = stored_requests_per_frame(options);
   auto loader = StoredProducer::create(context, std::move(store), vt, options.scene_hash, lo);
   if (!loader) return loader.error();
   return std::unique_ptr<StoredPages>(new StoredPages(std::move(loader.value()), cache, per_frame));
+}
+
+uint32_t stored_requests_per_frame(const StoredPagesOptions& options) {
+  return options.sync_loads ? options.page_budget : options.page_budget + options.loader.staging_slots;
 }
 
 ProducerAccept StoredPages::request(const PageRequest& r) {

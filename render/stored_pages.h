@@ -23,6 +23,11 @@ struct StoredPagesOptions {
   uint64_t scene_hash = 0;         // checked against the store's (0: unchecked)
 };
 
+// What StoredPages::requests_per_frame() is with these options: loads may be outstanding on top
+// of a frame's budget, except in a synchronous run, which asks for exactly what a procedural run
+// would so that their frames match one for one.
+uint32_t stored_requests_per_frame(const StoredPagesOptions& options);
+
 class StoredPages final : public PageProducer {
  public:
   // `cache`: the VT's cache image, owned by the caller and outliving the producer. `vt`: the

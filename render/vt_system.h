@@ -51,7 +51,8 @@ struct VtSystemOptions {
   uint32_t cancel_after_frames = 4;    // loads no frame has needed for this long are cancelled
   bool sync_loads = false;             // finish() the producer every frame: this frame's loads land in it
   uint32_t frames_in_flight = 2;       // frames the caller may have on the GPU at once (1 ... 8)
-  // The producer of every page (page_budget still caps the requests a frame): `producer`, or
+  // The producer of every page (its requests_per_frame() caps the requests a frame; page_budget
+  // only checks it against the cache): `producer`, or
   // else the one `make_producer` makes once the cache exists (`cache`: the VT's cache image,
   // its layers the slots, owned by the VtSystem and outliving the producer). One is required.
   std::shared_ptr<PageProducer> producer;

@@ -95,6 +95,13 @@ void PageLoader::cancel(const PageId& page) {
         break;
     }
   }
+  // A load that already failed (its slot freed) and is not polled yet: withdrawn too, so the
+  // caller hears "cancelled" for a page it cancelled, never a later "failed".
+  for (LoadedPage& r : finished_)
+    if (r.page == page && r.status == LoadStatus::failed) {
+      r.status = LoadStatus::cancelled;
+      r.error = PageError::none;
+    }
   if (queue_.empty() && loading_ == 0) idle_cv_.notify_all();
 }
 

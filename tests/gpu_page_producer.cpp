@@ -49,6 +49,9 @@ class CheckerProducer final : public terravt::PageProducer {
   }
 
   uint32_t per_frame = 1000, delay = 0;
+  uint32_t wants_per_frame = 0;  // requests_per_frame(): 0, the VT's page budget
+  terravt::Error failure{terravt::ErrorKind::io, "the checkerboard disk is on fire"};  // record()'s, with failed pages
+  uint32_t most_offered = 0;     // the most request() calls in one frame
   std::function<bool(const PageTask&)> fails;        // these are reported failed
   std::function<bool(const PageTask&)> unavailable;  // these are refused for good
   std::vector<PageTask> extra_written;               // reported written without a request (contract breach)
@@ -118,11 +121,13 @@ class CheckerProducer final : public terravt::PageProducer {
     vkUpdateDescriptorSets(device_, 1, &w, 0, nullptr);
     return terravt::Ok{};
   }
+  uint32_t requests_per_frame() const override { return wants_per_frame; }
   void begin_frame(uint64_t frame) override {
     frame_ = frame;
-    accepted_ = 0;
+    accepted_ = offered_ = 0;
   }
   terravt::ProducerAccept request(const PageTask& t) override {
+    most_offered = std::max(most_offered, ++offered_);
     if (unavailable && unavailable(t)) return terravt::ProducerAccept::unavailable;
     if (accepted_ >= per_frame) return terravt::ProducerAccept::busy;
     ++accepted_;
@@ -158,7 +163,7 @@ class CheckerProducer final : public terravt::PageProducer {
     pending_ = std::move(later);
     written.insert(written.end(), extra_written.begin(), extra_written.end());
     extra_written.clear();
-    if (!failed.empty()) return terravt::Error{terravt::ErrorKind::io, "the checkerboard disk is on fire"};
+    if (!failed.empty()) return failure;
     return terravt::Ok{};
   }
 
@@ -175,7 +180,7 @@ class CheckerProducer final : public terravt::PageProducer {
   VkPipeline pipeline_ = VK_NULL_HANDLE;
   std::vector<Pending> pending_;
   uint64_t frame_ = 0;
-  uint32_t accepted_ = 0;
+  uint32_t accepted_ = 0, offered_ = 0;
 };
 
 terravt::VirtualTextureDesc producer_desc(std::shared_ptr<CheckerProducer> producer) {
@@ -274,6 +279,30 @@ TEST(PageProducer, TheClientsComputeShaderFillsEveryPageTheViewAsksForSlotBySlot
   }
 }
 
+TEST(PageProducer, AProducerSaysHowManyPagesItWantsOfferedAFrame) {
+  for (const uint32_t wants : {0u, 3u, 40u, 1000u}) {
+    Client client(2);
+    ASSERT_TRUE(client.device);
+    auto producer = std::make_shared<CheckerProducer>(client.h.device);
+    producer->wants_per_frame = wants;
+    producer->delay = 2;  // pages stay outstanding: the residency keeps offering more
+    auto created = terravt::VirtualTexture::create(client.h, producer_desc(producer));
+    ASSERT_TRUE(created.ok()) << created.error().message;
+    terravt::VirtualTexture& vt = **created;
+    // Every mip-0 page of a 16 x 16 block: far more than any frame's offer.
+    const int64_t centre = int64_t(1) << (vt.info().log2_size - 1);
+    const uint32_t px = uint32_t(centre / vt.info().page_texels);
+    std::vector<terravt::PageRequest> wanted;
+    for (uint32_t dy = 0; dy < 16; ++dy)
+      for (uint32_t dx = 0; dx < 16; ++dx) wanted.push_back({0, px - 8 + dx, px - 8 + dy, 1});
+    const Frames run = run_frames(client, vt, wanted, 6);
+    for (const terravt::Status& s : run.records) EXPECT_TRUE(s.ok()) << s.error().message;
+    // 0: the page budget (16); otherwise what it asked for, at most the cache's 48 slots.
+    const uint32_t expected = wants == 0 ? 16u : std::min(wants, 48u);
+    EXPECT_EQ(producer->most_offered, expected) << "requests_per_frame() " << wants;
+  }
+}
+
 TEST(PageProducer, AFailingProducerLeavesTheAncestorsStandingInAndTheFramesGoOn) {
   Client client(2);
   ASSERT_TRUE(client.device);
@@ -303,6 +332,54 @@ TEST(PageProducer, AFailingProducerLeavesTheAncestorsStandingInAndTheFramesGoOn)
     EXPECT_GE(gpu::tvt_pte_mip(e), 2u) << "an entry maps data of a mip the producer never made";
   }
   EXPECT_GT(valid, 0u);
+}
+
+TEST(PageProducer, OnlyAFailedVulkanCallOfTheProducerStaysLatched) {
+  // Host memory running out (no VkResult) is the producer's failure of those pages: the next
+  // frames go on. A failed Vulkan call of the producer's is the device's: it stays.
+  for (const bool vulkan : {false, true}) {
+    Client client(2);
+    ASSERT_TRUE(client.device);
+    auto producer = std::make_shared<CheckerProducer>(client.h.device);
+    producer->fails = [](const PageTask& t) { return t.mip == 0; };
+    producer->failure = vulkan ? terravt::Error{terravt::ErrorKind::out_of_memory, "vkAllocateMemory",
+                                                int32_t(VK_ERROR_OUT_OF_DEVICE_MEMORY)}
+                               : terravt::Error{terravt::ErrorKind::out_of_memory, "std::bad_alloc reading a page"};
+    auto created = terravt::VirtualTexture::create(client.h, producer_desc(producer));
+    ASSERT_TRUE(created.ok()) << created.error().message;
+    terravt::VirtualTexture& vt = **created;
+    const int64_t centre = int64_t(1) << (vt.info().log2_size - 1);
+    const std::vector<terravt::PageRequest> wanted = centre_requests(vt.info(), centre);
+    if (vulkan) {
+      // Frames until record() fails; from then on every call returns the same error.
+      std::optional<terravt::Error> latched;
+      for (uint64_t f = 0; f < 6; ++f) {
+        VkCommandBuffer cmd = client.begin(f);
+        const terravt::Status begun =
+            vt.begin_frame(f, f >= 2 ? std::optional<uint64_t>(f - 2) : std::nullopt, centre, centre, wanted);
+        const terravt::Status recorded = begun.ok() ? vt.record(cmd) : begun;
+        client.submit(f);
+        if (latched) {
+          EXPECT_FALSE(begun.ok()) << "frame " << f << " began after the producer's Vulkan failure";
+          EXPECT_EQ(recorded.error().message, latched->message);
+        } else if (!recorded.ok()) {
+          latched = recorded.error();
+        }
+      }
+      ASSERT_TRUE(latched);
+      EXPECT_EQ(latched->kind, terravt::ErrorKind::out_of_memory);
+      EXPECT_EQ(latched->vk_result, int32_t(VK_ERROR_OUT_OF_DEVICE_MEMORY));
+    } else {
+      const Frames run = run_frames(client, vt, wanted, 6);
+      const auto first = std::find_if(run.records.begin(), run.records.end(), [](const terravt::Status& s) { return !s.ok(); });
+      ASSERT_NE(first, run.records.end());
+      EXPECT_EQ(first->error().kind, terravt::ErrorKind::producer_failed) << first->error().message;
+      EXPECT_NE(first->error().message.find("std::bad_alloc"), std::string::npos);
+      // Frames after it still record (the failed mip-0 pages are retried after a back-off).
+      EXPECT_TRUE(std::any_of(first + 1, run.records.end(), [](const terravt::Status& s) { return s.ok(); }));
+    }
+    vkDeviceWaitIdle(client.h.device);
+  }
 }
 
 TEST(PageProducer, AReportOfAPageItWasNotHandedIsMisuseAndIgnored) {

@@ -250,6 +250,32 @@ TEST_F(PageLoaderTest, CorruptAndMissingPagesFailAndAreReportedOnce) {
   EXPECT_EQ(s.staging_in_use, 0u);
 }
 
+TEST_F(PageLoaderTest, AFailedLoadCancelledBeforeItIsPolledIsReportedCancelled) {
+  auto store = open_store();
+  ASSERT_TRUE(store);
+  PageLoader loader(store, PageLoaderOptions{2, 8});
+  const PageId absent{0, 3, 3};  // mip 0 is not in this store: the load fails
+  ASSERT_TRUE(loader.request(absent, 7));
+  ASSERT_TRUE(loader.request(plan_[3], 8));
+  loader.wait_idle();       // both finished, neither polled
+  loader.cancel(absent);    // the caller no longer wants it: "failed" would come for a page it gave up
+  std::vector<LoadedPage> done;
+  loader.poll(done);
+  ASSERT_EQ(done.size(), 2u);
+  for (const LoadedPage& p : done) {
+    if (p.tag == 8) {
+      EXPECT_EQ(p.status, LoadStatus::ok);
+      loader.release(p.staging);
+      continue;
+    }
+    EXPECT_EQ(p.status, LoadStatus::cancelled);
+    EXPECT_EQ(p.error, PageError::none);
+    EXPECT_EQ(p.staging, UINT32_MAX);
+  }
+  EXPECT_EQ(loader.stats().failed, 0u);
+  EXPECT_EQ(loader.stats().cancelled, 1u);
+}
+
 TEST_F(PageLoaderTest, DestructionWithQueuedWorkDoesNotHang) {
   auto store = open_store();
   ASSERT_TRUE(store);

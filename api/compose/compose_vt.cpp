@@ -6,6 +6,7 @@
 
 #include <optional>
 #include <string>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -23,9 +24,11 @@ namespace {
 
 Error invalid(std::string message) { return Error{ErrorKind::invalid_argument, std::move(message)}; }
 
-// A failed Vulkan call keeps its kind; anything else from the scene side is the input's fault.
-Error as_error(const Error& e, ErrorKind otherwise) {
-  if (e.vk_result != 0 || e.kind == ErrorKind::out_of_memory) return e;
+// A failed Vulkan call keeps its kind, and so does running out of memory where `keep_memory`
+// (create(): nothing is made); anything else gets `otherwise`.
+Error as_error(const Error& e, ErrorKind otherwise, bool keep_memory = true) {
+  if (e.vk_result != 0 || e.kind == ErrorKind::vulkan || e.kind == ErrorKind::device_lost) return e;
+  if (keep_memory && e.kind == ErrorKind::out_of_memory) return e;
   return Error{otherwise, e.message};
 }
 
@@ -42,6 +45,15 @@ class ScenePages final : public PageProducer {
     inner_.reset();  // before the context its resources belong to
   }
 
+  // As the built-in producer it wraps: the hybrid keeps loads in flight on top of the budget.
+  uint32_t requests_per_frame() const override {
+    if (options_.source == tvt::VtSource::procedural) return options_.page_budget;
+    tvt::StoredPagesOptions so;
+    so.page_budget = options_.page_budget;
+    so.loader = options_.loader;
+    so.sync_loads = options_.sync_loads;
+    return tvt::stored_requests_per_frame(so);
+  }
   Status attach(const ProducerTarget& t) override {
     if (inner_) return Error{ErrorKind::misuse, "the scene's page producer is attached to one VirtualTexture only"};
     cache_ = tvt::vk::Context::borrow_image(t.cache, t.cache_view, t.format, t.slot_texels, t.slot_texels, t.slots);
@@ -53,39 +65,55 @@ class ScenePages final : public PageProducer {
     return context_->status();
   }
   void begin_frame(uint64_t frame) override {
-    frame_ = frame;
-    // The frame that recorded the set-up has completed: its staging may go.
-    if (setup_frame_ && frame >= *setup_frame_ + frames_in_flight_) {
+    ++begun_;
+    // The frame that recorded the set-up has completed (frames_in_flight begin_frame() calls
+    // later; frame numbers may skip): its staging may go.
+    if (setup_begun_ && begun_ >= *setup_begun_ + frames_in_flight_) {
       context_->release_deferred_staging();
-      setup_frame_.reset();
+      setup_begun_.reset();
     }
     inner_->begin_frame(frame);
   }
   ProducerAccept request(const PageTask& t) override {
-    switch (inner_->request(tvt::PageRequest{tvt::PageId{t.mip, t.x, t.y}, t.slot})) {
-      case tvt::ProducerAccept::accepted: return ProducerAccept::accepted;
+    const tvt::PageId page{t.mip, t.x, t.y};
+    switch (inner_->request(tvt::PageRequest{page, t.slot})) {
+      case tvt::ProducerAccept::accepted: owned_[page.pack()] = t.slot; return ProducerAccept::accepted;
       case tvt::ProducerAccept::unavailable: return ProducerAccept::unavailable;
       case tvt::ProducerAccept::busy: break;
     }
     return ProducerAccept::busy;
   }
-  void cancel(const PageTask& t) override { inner_->cancel(tvt::PageId{t.mip, t.x, t.y}); }
+  void cancel(const PageTask& t) override {
+    const tvt::PageId page{t.mip, t.x, t.y};
+    owned_.erase(page.pack());
+    inner_->cancel(page);
+  }
   void finish() override { inner_->finish(); }
   Status record(VkCommandBuffer cmd, std::vector<PageTask>& written, std::vector<PageTask>& failed) override {
     if (auto st = context_->status(); !st) return st;
     if (context_->has_deferred_setup()) {
       context_->record_deferred_setup(cmd);
-      setup_frame_ = frame_;
+      setup_begun_ = begun_;
     }
     outcome_.clear();
     const tvt::Status s = inner_->record(cmd, outcome_);
     inner_->end_frame();
-    // Cancelled pages were withdrawn by terravt, which knows it already.
-    for (const tvt::PageRequest& r : outcome_.written) written.push_back(task_of(r));
-    for (const tvt::PageRequest& r : outcome_.failed) failed.push_back(task_of(r));
+    // Only pages terravt handed over and still wants are reported, each once. The inner
+    // producers report a cancelled page as cancelled (the loader turns a load that failed
+    // before the cancel into one too), and terravt knows those already.
+    const auto report = [&](const std::vector<tvt::PageRequest>& from, std::vector<PageTask>& to) {
+      for (const tvt::PageRequest& r : from) {
+        const auto it = owned_.find(r.page.pack());
+        if (it == owned_.end() || it->second != r.slot) continue;
+        owned_.erase(it);
+        to.push_back(task_of(r));
+      }
+    };
+    report(outcome_.written, written);
+    report(outcome_.failed, failed);
     for (const std::string& m : inner_->take_error_messages()) context_->log(LogLevel::warning, m);
     if (auto st = context_->status(); !st) return st;
-    if (!s) return as_error(s.error(), ErrorKind::producer_failed);
+    if (!s) return as_error(s.error(), ErrorKind::producer_failed, false);
     return Ok{};
   }
 
@@ -96,9 +124,10 @@ class ScenePages final : public PageProducer {
   tvt::vk::Image cache_;  // borrowed: the VirtualTexture's
   std::unique_ptr<tvt::PageProducer> inner_;
   tvt::ProducerOutcome outcome_;
-  uint64_t frame_ = 0;
+  std::unordered_map<uint64_t, uint32_t> owned_;  // accepted, not yet reported or cancelled: PageId::pack() -> slot
+  uint64_t begun_ = 0;                            // begin_frame() calls
   uint32_t frames_in_flight_ = 1;
-  std::optional<uint64_t> setup_frame_;
+  std::optional<uint64_t> setup_begun_;           // the call whose frame recorded the set-up
 };
 
 }  // namespace
@@ -114,7 +143,7 @@ Result<std::unique_ptr<VirtualTexture>> create_virtual_texture(const DeviceHandl
   if (desc.source != PageSource::composed && desc.store_file.empty() && !desc.producer)
     return invalid("VirtualTextureDesc::store_file: a stored or hybrid source needs a store");
   if (desc.consumer_stages == 0) return invalid("VirtualTextureDesc::consumer_stages: name at least one stage");
-  // The device first: a device terravt cannot run on is the first thing to hear about.
+  // Then the device, before the scene is read.
   if (auto st = check_device(device); !st) return st.error();
 
   auto scene = desc.scene_file.empty() ? tvt::Result<tvt::SceneDesc>(tvt::default_scene())

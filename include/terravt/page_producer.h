@@ -4,8 +4,9 @@
 // then maps what it wrote in the page table and places the barriers around it.
 //
 // Per frame, on the thread that drives the VirtualTexture:
-//   begin_frame(frame)        the frame desc.frames_in_flight frames earlier has completed on
-//                             the GPU: what it read from host memory may be reused
+//   begin_frame(frame)        the frame begun desc.frames_in_flight begin_frame() calls earlier
+//                             has completed on the GPU: what it read from host memory may be
+//                             reused (frame numbers increase but may skip: count the calls)
 //   request(task) ...         the pages wanted, most important first; answer accepted (written
 //                             by this or a later record()), busy (none more this frame: asked
 //                             again next frame) or unavailable (this page never: its nearest
@@ -71,9 +72,15 @@ class TERRAVT_API PageProducer {
   virtual void cancel(const PageTask& /*task*/) {}
   virtual void finish() {}
   // `written` and `failed` arrive empty. An error returned here is handed to the client by
-  // VirtualTexture::record() (ErrorKind::producer_failed) after the frame is completed: list
-  // the pages it concerns in `failed`.
+  // VirtualTexture::record() after the frame is completed (list the pages it concerns in
+  // `failed`): as ErrorKind::producer_failed, except a failed Vulkan call (vk_result set, or
+  // kind vulkan or device_lost), which keeps its kind and stays: every later call returns it.
   virtual Status record(VkCommandBuffer cmd, std::vector<PageTask>& written, std::vector<PageTask>& failed) = 0;
+  // New virtual functions go last: a producer built against an earlier 0.x keeps its vtable.
+  // The most pages it wants offered in one frame, asked once by VirtualTexture::create()
+  // (before attach()); 0: VirtualTextureDesc::page_budget. A loader that keeps reads in flight
+  // across frames may want more than it writes in one. At most the cache's slots are offered.
+  virtual uint32_t requests_per_frame() const { return 0; }
 };
 
 }  // namespace terravt

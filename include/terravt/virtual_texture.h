@@ -64,9 +64,9 @@ struct VirtualTextureLayout {
 // What a VirtualTexture is made from. Two entry points take it:
 //   * VirtualTexture::create() (libterravt, terravt::terravt): pages from a baked store
 //     (source stored, geometry from the store) or from a client's producer (geometry from
-//     `layout`). It reads no scene and links no image or scene library; scene_file, method,
-//     mip_strategy and the composed and hybrid sources are refused there (invalid_argument,
-//     naming the compose component).
+//     `layout`). It reads no scene and links no image or scene library: a scene_file and the
+//     composed and hybrid sources are refused there (invalid_argument, naming the compose
+//     component); method and mip_strategy, which only say how a scene is composed, are unused.
 //   * terravt::compose::create_virtual_texture() (terravt/compose.h, libterravt_compose,
 //     terravt::compose): everything, from a scene: composed, stored (the store checked against
 //     the scene) and hybrid pages, or a client's producer over the scene's geometry.
@@ -167,8 +167,10 @@ class TERRAVT_API VirtualTexture {
   Status begin_frame(uint64_t frame, std::optional<uint64_t> completed_frame, int64_t camera_texel_x,
                      int64_t camera_texel_y, std::span<const PageRequest> requests);
   // Records this frame's GPU work into `cmd` (a primary command buffer in the recording state,
-  // of the queue family given at create()). A page whose material cannot be loaded fails
-  // (ErrorKind::producer_failed, naming the file); the frame is still complete and usable.
+  // of the queue family given at create()). A page the producer cannot make fails
+  // (ErrorKind::producer_failed: e.g. the compose component's material that cannot be loaded,
+  // naming the file); the frame is still complete and usable. A failed Vulkan call, terravt's
+  // or the producer's, keeps its kind and is returned by every later call.
   Status record(VkCommandBuffer cmd);
   // Records into `cmd` the GPU compaction of the client's feedback buffer (STORAGE_BUFFER usage,
   // desc.feedback_texels texels of 8 bytes from `offset`, cleared to 0xffffffff and written by

@@ -69,6 +69,7 @@ check_shared_lib() {  # check_shared_lib NAME: the installed libNAME.so.X.Y.Z; s
   leaked=$(nm -D --defined-only -C "$lib" | awk '$2 ~ /[TWBDRVu]/' |
            awk '!($2 ~ /[WVu]/ && $0 ~ /std::/)' | cut -d' ' -f3- |
            grep -vE '^((vtable|typeinfo|typeinfo name) for )?terravt::' | grep -vE '^(_init|_fini|__bss_start|_edata|_end)$' || true)
+  leaked=$(printf '%s\n' "$leaked" "$(nm -D --defined-only -C "$lib" | grep -E 'terravt::detail::' || true)" | grep . || true)
   if [ -n "$leaked" ]; then echo "FAIL: lib$1 exports non-API symbols:"; echo "$leaked" | head -20; exit 1; fi
   # Vulkan through the client's vkGetInstanceProcAddr only: no Vulkan function imported, no
   # loader linked (an engine that loads Vulkan its own way gets no second loader).
@@ -122,6 +123,20 @@ if objdump -p "$work/consumer_compose_static/consumer" | grep -E 'NEEDED +libter
   echo "FAIL: the static compose client still needs a libterravt shared library"; exit 1
 fi
 run_compose_client "$work/consumer_compose_static/consumer"
+# static first, then static and compose in a later call of the same project: the archive of
+# compose still comes (the first call made terravt::terravt_static already).
+mkdir -p "$work/two_calls"
+cat > "$work/two_calls/CMakeLists.txt" <<'CMAKE'
+cmake_minimum_required(VERSION 3.25)
+project(two_calls LANGUAGES CXX)
+find_package(terravt CONFIG REQUIRED COMPONENTS static)
+find_package(terravt CONFIG REQUIRED COMPONENTS static compose)
+if(NOT TARGET terravt::compose_static OR NOT TARGET terravt::compose)
+  message(FATAL_ERROR "terravt::compose_static missing after the second find_package")
+endif()
+CMAKE
+cmake -S "$work/two_calls" -B "$work/two_calls/build" -DCMAKE_PREFIX_PATH="$prefix" >"$work/two_calls.log" 2>&1 ||
+  { cat "$work/two_calls.log"; echo "FAIL: find_package(static) then (static compose)"; exit 1; }
 # A component that does not exist is refused by find_package.
 mkdir -p "$work/bad_component"
 cat > "$work/bad_component/CMakeLists.txt" <<'CMAKE'
