@@ -5,6 +5,7 @@
 // compared byte for byte, read back from the cache slots the page table names.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -168,15 +169,40 @@ TEST(Components, LibterravtAloneRefusesWhatNeedsTheComposeComponentNamingIt) {
 
 class ComposeComponent : public GpuTest {
  protected:
-  // The built-in scene on a 2^10 VT, as a file, and a store of it baked with `method`.
+  // The built-in scene on a 2^10 VT, as a file, and stores of it baked with fbpb+dpt2: whole,
+  // and without the centre's mip-0 pages (which the hybrid then composes). Made once for the
+  // suite (the bakes dominate its time), removed after it.
+  struct Files {
+    std::filesystem::path dir;
+    std::string scene, store, partial_store;
+  };
+  static std::optional<Files>& files() {
+    static std::optional<Files> f;
+    return f;
+  }
+  static void TearDownTestSuite() {
+    if (files()) std::filesystem::remove_all(files()->dir);
+    files().reset();
+  }
   void SetUp() override {
     GpuTest::SetUp();
-    dir_ = test::fresh_test_dir("terravt_compose_component");
+    if (!files()) {
+      Files f;
+      f.dir = test::fresh_test_dir("terravt_compose_component");
+      make_files(f);
+      if (HasFatalFailure()) return;
+      files() = f;
+    }
+    scene_file_ = files()->scene;
+    store_ = files()->store;
+    partial_store_ = files()->partial_store;
+  }
+  void make_files(Files& f) {
     SceneDesc scene = default_scene();
     scene.vt.log2_size = 10;
-    scene_file_ = (dir_ / "scene.json").string();
-    std::ofstream(scene_file_) << scene_to_json(scene);
-    auto loaded = load_scene_file(scene_file_);
+    f.scene = (f.dir / "scene.json").string();
+    std::ofstream(f.scene) << scene_to_json(scene);
+    auto loaded = load_scene_file(f.scene);
     ASSERT_TRUE(loaded.ok()) << loaded.error().message;
     auto assets = load_scene_assets(loaded.value());
     ASSERT_TRUE(assets.ok()) << assets.error().message;
@@ -188,15 +214,14 @@ class ComposeComponent : public GpuTest {
     sd.vt = assets->desc.vt;
     sd.scene_hash = store_scene_identity(assets->desc, Method::FbpbDpt, {}, StorePyramid::composed);
     sd.producer = "gpu fbpb+dpt2";
-    store_ = (dir_ / "scene.tvt").string();
-    // Every page but the centre's mip-0 pages, which the hybrid then composes.
+    f.store = (f.dir / "scene.tvt").string();
     auto plan = bake_plan(sd.vt, BakeRegion{});
     ASSERT_TRUE(plan.ok());
     const std::vector<PageId> centre = centre_pages(terravt::VirtualTextureInfo{10, 128, 4, 4, 0});
     std::vector<PageId> kept;
     for (const PageId& p : plan.value())
       if (p.mip != 0 || std::find(centre.begin(), centre.end(), p) == centre.end()) kept.push_back(p);
-    partial_store_ = (dir_ / "partial.tvt").string();
+    f.partial_store = (f.dir / "partial.tvt").string();
     BakeOptions bo;
     bo.resume = false;
     const PageSource source = [&](std::span<const PageId> pages, std::vector<std::vector<uint8_t>>& out) -> Status {
@@ -205,12 +230,19 @@ class ComposeComponent : public GpuTest {
       out = std::move(composed.value());
       return Ok{};
     };
-    ASSERT_TRUE(bake_store(store_, sd, plan.value(), source, bo).ok());
-    ASSERT_TRUE(bake_store(partial_store_, sd, kept, source, bo).ok());
-  }
-  void TearDown() override {
-    std::filesystem::remove_all(dir_);
-    GpuTest::TearDown();
+    ASSERT_TRUE(bake_store(f.store, sd, plan.value(), source, bo).ok());
+    // The partial store's pages come from the whole one (read, not composed again).
+    auto whole = PageStoreReader::open(f.store);
+    ASSERT_TRUE(whole.ok()) << whole.error().message;
+    const PageSource copy = [&](std::span<const PageId> pages, std::vector<std::vector<uint8_t>>& out) -> Status {
+      auto decoder = whole.value()->make_decoder();
+      out.assign(pages.size(), std::vector<uint8_t>(size_t(sd.page_bytes())));
+      for (size_t i = 0; i < pages.size(); ++i)
+        if (whole.value()->read_page(pages[i], out[i], *decoder) != PageError::none)
+          return make_error("cannot read " + to_string(pages[i]));
+      return Ok{};
+    };
+    ASSERT_TRUE(bake_store(f.partial_store, sd, kept, copy, bo).ok());
   }
 
   terravt::VirtualTextureDesc desc(terravt::PageSource source, const std::string& store) const {
@@ -234,7 +266,6 @@ class ComposeComponent : public GpuTest {
     return resident_layers(client, *created.value(), pages);
   }
 
-  std::filesystem::path dir_;
   std::string scene_file_, store_, partial_store_;
 };
 
