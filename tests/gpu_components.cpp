@@ -307,5 +307,43 @@ TEST_F(ComposeComponent, AStoreOfAnotherMethodOrGeometryIsRefusedNamingTheField)
       << other_layout.error().message;
 }
 
+TEST_F(ComposeComponent, APageComposerComposesTheVtsBytesIntoHostMemory) {
+  const terravt::VirtualTextureDesc d = desc(terravt::PageSource::composed, "");
+  const auto in_vt = centre_layers(d);
+  Client client(1);
+  ASSERT_TRUE(client.device);
+  auto made = terravt::compose::PageComposer::create(client.h, d, 4);  // batches of 4: three submissions
+  ASSERT_TRUE(made.ok()) << made.error().message;
+  terravt::compose::PageComposer& composer = *made.value();
+  EXPECT_EQ(composer.info().log2_size, 10u);
+  EXPECT_EQ(composer.page_bytes(), uint64_t(136) * 136 * 4);
+  std::vector<terravt::PageRequest> requests;
+  for (const PageId& p : centre_pages(composer.info())) requests.push_back({p.mip, p.x, p.y, 1});
+  std::vector<std::vector<uint8_t>> pages;
+  const terravt::Status s = composer.compose(requests, pages);
+  ASSERT_TRUE(s.ok()) << s.error().message;
+  ASSERT_EQ(pages.size(), in_vt.size());
+  for (size_t i = 0; i < pages.size(); ++i)
+    EXPECT_TRUE(pages[i] == in_vt[i]) << "page " << i << ": not the bytes the VT's cache slot holds";
+
+  // A page outside the VT is refused by index, before anything is composed.
+  requests[1] = {0, 8, 0, 1};  // mip 0 has 8 pages a side
+  pages.clear();
+  const terravt::Status bad = composer.compose(requests, pages);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.error().kind, terravt::ErrorKind::invalid_argument);
+  EXPECT_NE(bad.error().message.find("pages[1]"), std::string::npos) << bad.error().message;
+  EXPECT_TRUE(pages.empty());
+  // Bad descriptions and batches name what is wrong.
+  auto no_batch = terravt::compose::PageComposer::create(client.h, d, 0);
+  ASSERT_FALSE(no_batch.ok());
+  EXPECT_NE(no_batch.error().message.find("batch"), std::string::npos);
+  terravt::VirtualTextureDesc bad_method = d;
+  bad_method.method = "nonsense";
+  auto refused = terravt::compose::PageComposer::create(client.h, bad_method);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.error().message.find("VirtualTextureDesc::method"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace tvt

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "compose/reference_compositor.h"
+#include "api/compose/page_composer_access.h"
 #include "compose/scene_identity.h"
 #include "tools/cli_common.h"
 
@@ -33,7 +34,9 @@ Result<std::unique_ptr<PageProducers>> PageProducers::create(const SceneAssets& 
     context = p->context_.get();
   }
   p->device_name_ = context->device_name();
-  auto composer = GpuComposer::create(*context, p->packed_, 32);
+  auto handles = context->device_handles();
+  if (!handles) return handles.error();
+  auto composer = terravt::detail::ComposeAccess::make_page_composer(handles.value(), assets, method, strategy, 32);
   if (!composer) return composer.error();
   p->composer_ = std::move(composer.value());
   return p;
@@ -52,13 +55,17 @@ StoreDesc PageProducers::store_desc(int level) const {
   return d;
 }
 
+GpuComposer* PageProducers::composer() {
+  return composer_ ? &terravt::detail::ComposeAccess::composer(*composer_) : nullptr;
+}
+
 PageSource PageProducers::source() {
   if (!cpu_)
     return [this](std::span<const PageId> pages, std::vector<std::vector<uint8_t>>& out) -> Status {
-      auto composed = composer_->compose_pages(pages);
-      if (!composed) return composed.error();
-      out = std::move(composed.value());
-      return Ok{};
+      std::vector<terravt::PageRequest> requests;
+      requests.reserve(pages.size());
+      for (const PageId& p : pages) requests.push_back({p.mip, p.x, p.y, 1});
+      return composer_->compose(requests, out);
     };
   return [this](std::span<const PageId> pages, std::vector<std::vector<uint8_t>>& out) -> Status {
     // A bake reads every material: load them up front (once; later calls are free), so the

@@ -1,6 +1,8 @@
 // Page producers shared by `bake` and `compare`: the same compositors `compose` and `render`
-// use (GPU compute shader by default, the double-precision CPU reference optionally), wrapped
-// as a streaming::PageSource, and the StoreDesc that names them in a store header.
+// use (GPU compute shader by default, through the public terravt::compose::PageComposer on the
+// device the tool made, as an engine would bake; the double-precision CPU reference
+// optionally), wrapped as a streaming::PageSource, and the StoreDesc that names them in a
+// store header.
 #pragma once
 #include <memory>
 #include <string>
@@ -9,6 +11,7 @@
 #include "compose/scene_assets.h"
 #include "composer/gpu_composer.h"
 #include "gpu/context.h"
+#include "terravt/compose.h"
 #include "streaming/bake.h"
 #include "streaming/page_store.h"
 
@@ -21,7 +24,7 @@ class PageProducers {
   static Result<std::unique_ptr<PageProducers>> create(const SceneAssets& assets, Method method, MipStrategy strategy,
                                                        bool cpu, const std::string& gpu_name,
                                                        vk::Context* context = nullptr);
-  GpuComposer* composer() { return composer_.get(); }
+  GpuComposer* composer();  // under the PageComposer (timings); null for the CPU reference
   // A store header for pages made by this producer at zstd `level`.
   StoreDesc store_desc(int level) const;
   // Produces pages in order; raw (P+2B)^2 RGBA8 each.
@@ -38,7 +41,7 @@ class PageProducers {
   bool cpu_ = false;
   std::string device_name_;
   std::unique_ptr<vk::Context> context_;
-  std::unique_ptr<GpuComposer> composer_;
+  std::unique_ptr<terravt::compose::PageComposer> composer_;
 };
 
 }  // namespace tvt::cli

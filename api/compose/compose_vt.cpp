@@ -134,10 +134,7 @@ class ScenePages final : public PageProducer {
 
 Result<std::unique_ptr<VirtualTexture>> create_virtual_texture(const DeviceHandles& device,
                                                                const VirtualTextureDesc& desc) {
-  const auto method = tvt::method_from_string(desc.method);
-  if (!method) return invalid("VirtualTextureDesc::method: unknown method '" + desc.method + "'");
-  const auto strategy = tvt::mip_strategy_from_string(desc.mip_strategy);
-  if (!strategy) return invalid("VirtualTextureDesc::mip_strategy: " + strategy.error().message);
+  if (auto st = detail::check_scene_fields(desc); !st) return st.error();
   if (desc.source != PageSource::composed && desc.source != PageSource::stored && desc.source != PageSource::hybrid)
     return invalid("VirtualTextureDesc::source: not a PageSource value");
   if (desc.source != PageSource::composed && desc.store_file.empty() && !desc.producer)
@@ -146,11 +143,11 @@ Result<std::unique_ptr<VirtualTexture>> create_virtual_texture(const DeviceHandl
   // Then the device, before the scene is read.
   if (auto st = check_device(device); !st) return st.error();
 
-  auto scene = desc.scene_file.empty() ? tvt::Result<tvt::SceneDesc>(tvt::default_scene())
-                                       : tvt::load_scene_file(desc.scene_file);
-  if (!scene) return invalid(scene.error().message);
-  auto assets = tvt::load_scene_assets(scene.value());
-  if (!assets) return as_error(assets.error(), ErrorKind::invalid_argument);
+  auto loaded = detail::load_desc_scene(desc);
+  if (!loaded) return loaded.error();
+  const tvt::SceneAssets* assets = &loaded->assets;
+  const tvt::Method* method = &loaded->method;
+  const tvt::MipStrategy* strategy = &loaded->strategy;
   const tvt::VtConfig& vt = assets->desc.vt;
   const VirtualTextureLayout& l = desc.layout;
   if (l.log2_size != 0 && (l.log2_size != vt.log2_size || l.page_texels != vt.page_texels ||
@@ -168,13 +165,13 @@ Result<std::unique_ptr<VirtualTexture>> create_virtual_texture(const DeviceHandl
 
   std::shared_ptr<const tvt::PageStoreReader> store;
   if (desc.source != PageSource::composed) {
-    auto opened = detail::open_scene_store(desc.store_file, assets.value(), *method, strategy.value());
+    auto opened = detail::open_scene_store(desc.store_file, *assets, *method, *strategy);
     if (!opened) return opened.error();
     store = std::move(opened.value());
   }
   if (desc.source == PageSource::stored) return VirtualTexture::create(device, core);  // checked: reads it alone
 
-  auto packed = tvt::pack_scene(assets.value(), tvt::options_for(*method, strategy.value()));
+  auto packed = tvt::pack_scene(*assets, tvt::options_for(*method, *strategy));
   if (!packed) return invalid(packed.error().message);
   auto context = tvt::vk::Context::adopt(device);
   if (!context) return context.error();

@@ -10,9 +10,20 @@
 #include "compose/scene_assets.h"
 #include "streaming/page_store.h"
 #include "terravt/error.h"
+#include "terravt/virtual_texture.h"
 #include "vt/vt_config.h"
 
 namespace terravt::detail {
+
+// The scene a VirtualTextureDesc names (scene_file, or the built-in scene) with its method and
+// mip strategy; errors name the desc's field or the scene file's.
+struct DescScene {
+  tvt::SceneAssets assets;
+  tvt::Method method = tvt::Method::FbpbDpt;
+  tvt::MipStrategy strategy;
+};
+Status check_scene_fields(const VirtualTextureDesc& desc);  // method and mip_strategy
+Result<DescScene> load_desc_scene(const VirtualTextureDesc& desc);
 
 // Opens `path` and checks it against the scene: geometry, page format and scene identity
 // (scene + method + mip strategy, for the store's pyramid). Errors name the store and field.

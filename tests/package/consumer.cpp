@@ -45,6 +45,12 @@ int main() {
                 composed.ok() ? "accepted" : composed.error().message.c_str());
     return 1;
   }
+  auto composer = terravt::compose::PageComposer::create(terravt::DeviceHandles{}, terravt::VirtualTextureDesc{});
+  if (composer.ok() || composer.error().message.find("DeviceHandles::") == std::string::npos) {
+    std::printf("FAIL: compose::PageComposer::create on empty handles: %s\n",
+                composer.ok() ? "accepted" : composer.error().message.c_str());
+    return 1;
+  }
   std::printf("compose component linked\n");
 #endif
   std::printf("terravt %s: %zu features (%d required); empty handles: %s\n", terravt::version_string(),
