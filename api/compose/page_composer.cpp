@@ -89,6 +89,5 @@ Result<std::unique_ptr<compose::PageComposer>> ComposeAccess::make_page_composer
 }
 
 tvt::GpuComposer& ComposeAccess::composer(compose::PageComposer& c) { return *c.impl_->composer; }
-std::string ComposeAccess::device_name(const compose::PageComposer& c) { return c.impl_->context->device_name(); }
 
 }  // namespace terravt::detail

@@ -19,7 +19,6 @@ struct ComposeAccess {
                                                                            tvt::Method method, tvt::MipStrategy strategy,
                                                                            uint32_t batch);
   static tvt::GpuComposer& composer(compose::PageComposer& c);
-  static std::string device_name(const compose::PageComposer& c);
 };
 
 }  // namespace terravt::detail
