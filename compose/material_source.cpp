@@ -1,6 +1,7 @@
 #include "compose/material_source.h"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cstdio>
 #include <filesystem>
@@ -8,8 +9,11 @@
 #include <chrono>
 #include <cmath>
 
+#include <glm/glm.hpp>
+
 #include "compose/material_image.h"
 #include "compose/procedural.h"
+#include "shaders/shared/compose_types.h"
 #include "shaders/shared/hash.h"
 #include "streaming/store_format.h"
 
@@ -360,17 +364,88 @@ MaterialInfo MaterialSource::info(size_t n) const {
 
 bool MaterialSource::loaded(size_t n) const { return slots_[n]->words.ok() || slots_[n]->assets.ok(); }
 
+namespace {
+
+// The statistics block that follows the mip chain (TVT_MATERIAL_STATS_WORDS, read by the
+// prefiltered strategy). Level l: the mean over level-l texels of the variance of A, and of
+// its covariance with R, G, B, within the level-0 texels under each: E[A X] - E[mean_A mean_X]
+// with exact (unrounded) block means, so level 0 is all zeros. Then the FBPB words.
+void append_material_stats(const MaterialAssets& a, std::vector<uint32_t>& words) {
+  std::array<float, gpu::TVT_MATERIAL_STATS_WORDS> stats{};
+  const ImageRGBA8& top = a.albedo.mips.front();
+  const int res = a.albedo.resolution;
+  if (res > 0 && top.width == res && top.height == res) {
+    // Level-0 values and the raw second moments E[A*X] over all texels (X = R, G, B, A).
+    std::vector<glm::dvec4> mean(size_t(res) * size_t(res));
+    glm::dvec4 raw(0.0);
+    for (int y = 0; y < res; ++y)
+      for (int x = 0; x < res; ++x) {
+        const uint8_t* t = top.at(x, y);
+        const glm::dvec4 v = glm::dvec4(t[0], t[1], t[2], t[3]) / 255.0;
+        mean[size_t(y) * size_t(res) + size_t(x)] = v;
+        raw += v.a * glm::dvec4(v.r, v.g, v.b, v.a);
+      }
+    raw /= double(res) * double(res);
+    for (int l = 1, r = res / 2; r >= 1 && l < 15; ++l, r /= 2) {
+      std::vector<glm::dvec4> next(size_t(r) * size_t(r));
+      glm::dvec4 block(0.0);  // E over level-l texels of mean_A * mean_X
+      for (int y = 0; y < r; ++y)
+        for (int x = 0; x < r; ++x) {
+          const size_t w2 = size_t(2 * r);
+          const glm::dvec4 m = 0.25 * (mean[size_t(2 * y) * w2 + size_t(2 * x)] + mean[size_t(2 * y) * w2 + size_t(2 * x + 1)] +
+                                       mean[size_t(2 * y + 1) * w2 + size_t(2 * x)] +
+                                       mean[size_t(2 * y + 1) * w2 + size_t(2 * x + 1)]);
+          next[size_t(y) * size_t(r) + size_t(x)] = m;
+          block += m.a * glm::dvec4(m.r, m.g, m.b, m.a);
+        }
+      block /= double(r) * double(r);
+      const glm::dvec4 within = raw - block;
+      stats[size_t(4 * l)] = float(std::max(within.a, 0.0));  // variance of A
+      for (int c = 0; c < 3; ++c) stats[size_t(4 * l + 1 + c)] = float(within[c]);
+      mean = std::move(next);
+    }
+  }
+  if (a.meta && !a.meta->texels.empty()) {
+    double features = 0.0, soft = 0.0;
+    glm::dvec4 all(0.0), inside(0.0);  // colour sums over every texel and over feature texels
+    const bool same_size = a.meta->resolution == res && a.meta->texels.size() == size_t(res) * size_t(res);
+    for (size_t i = 0; i < a.meta->texels.size(); ++i) {
+      const MetaTexel& t = a.meta->texels[i];
+      glm::dvec4 colour(0.0);
+      if (same_size) {
+        const uint8_t* c = &top.texels[4 * i];
+        colour = glm::dvec4(c[0], c[1], c[2], c[3]) / 255.0;
+      }
+      all += colour;
+      if (t.d) {
+        features += 1.0;
+        soft += t.f / 255.0;
+        inside += colour;
+      }
+    }
+    const double count = double(a.meta->texels.size());
+    stats[gpu::TVT_STATS_FEATURE_FRACTION] = float(features / count);
+    stats[gpu::TVT_STATS_FEATURE_SOFT] = features > 0.0 ? float(soft / features) : 0.0f;
+    if (features > 0.0 && same_size)
+      for (int c = 0; c < 4; ++c) stats[size_t(gpu::TVT_STATS_FEATURE_COLOUR + c)] = float(inside[c] / features - all[c] / count);
+  }
+  for (float f : stats) words.push_back(std::bit_cast<uint32_t>(f));
+}
+
+}  // namespace
+
 MaterialWords pack_material(const MaterialAssets& a) {
   MaterialWords w;
   w.resolution = a.albedo.resolution;
   w.mip_count = int(a.albedo.mips.size());
   size_t count = 0;
   for (const ImageRGBA8& mip : a.albedo.mips) count += mip.texels.size() / 4;
-  w.texels.reserve(count);
+  w.texels.reserve(count + size_t(gpu::TVT_MATERIAL_STATS_WORDS));
   for (const ImageRGBA8& mip : a.albedo.mips)
     for (size_t t = 0; t < mip.texels.size(); t += 4)
       w.texels.push_back(uint32_t(mip.texels[t]) | uint32_t(mip.texels[t + 1]) << 8 |
                          uint32_t(mip.texels[t + 2]) << 16 | uint32_t(mip.texels[t + 3]) << 24);
+  append_material_stats(a, w.texels);
   if (a.meta) {
     w.has_meta = true;
     w.feature_count = a.meta->feature_count;

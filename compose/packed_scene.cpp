@@ -1,6 +1,7 @@
 #include "compose/packed_scene.h"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <bit>
 #include <cmath>
@@ -115,6 +116,31 @@ int mode_code(Mode m) {
   return gpu::TVT_MODE_BLENDMAP;
 }
 
+// The coefficients of E[bilerp(m)^W] over a patch cell (TvtDptLayer::expect): its four corner
+// masks m are independent, each 1 with probability q, and (fx, fy) is uniform over the cell.
+// Grouped by the number of corners set, the expectation is
+//   q^4 + 4 q (1-q)^3 I1 + q^2 (1-q)^2 (4 I2a + 2 I2d) + 4 q^3 (1-q) I3,
+// with the mean over the cell of bilerp^W for one corner set (I1), two along an edge (I2a),
+// two across a diagonal (I2d) and three (I3). I1 and I2a have closed forms; I2d and I3 are
+// integrated numerically (a 128^2 midpoint rule, within ~1e-4 for W in [1e-3, 1e3]; W = 1,
+// the common case, is exact: I2d = 1/2, I3 = 3/4).
+std::array<double, 3> bilerp_power_expectation(double w) {
+  w = std::clamp(std::isfinite(w) ? w : 1.0, 1e-3, 1e3);
+  if (w == 1.0) return {1.0, 3.0, 3.0};
+  constexpr int k_n = 128;
+  double i2d = 0.0, i3 = 0.0;
+  for (int j = 0; j < k_n; ++j)
+    for (int i = 0; i < k_n; ++i) {
+      const double x = (i + 0.5) / k_n, y = (j + 0.5) / k_n;
+      i2d += std::pow(x * y + (1 - x) * (1 - y), w);
+      i3 += std::pow(1.0 - (1 - x) * (1 - y), w);
+    }
+  i2d /= double(k_n) * k_n;
+  i3 /= double(k_n) * k_n;
+  const double i1 = 1.0 / ((w + 1) * (w + 1)), i2a = 1.0 / (w + 1);
+  return {4.0 * i1, 4.0 * i2a + 2.0 * i2d, 4.0 * i3};
+}
+
 int64_t to_fixed(double texels) {
   const double v = std::clamp(texels * 256.0, 1.0, 9.0e15);
   return int64_t(std::llround(v));
@@ -134,15 +160,17 @@ std::optional<Method> method_from_string(std::string_view text) {
 }
 
 std::string to_string(MipStrategy strategy) {
+  if (strategy.prefiltered) return "prefiltered";
   return strategy.supersample <= 1 ? std::string("direct") : "supersample:" + std::to_string(strategy.supersample);
 }
 
 Result<MipStrategy> mip_strategy_from_string(std::string_view text) {
   const auto bad = [&] {
-    return make_error("mip strategy: must be direct or supersample:S with S a power of two from 2 to 64, got '" +
+    return make_error("mip strategy: must be direct, prefiltered or supersample:S with S a power of two from 2 to 64, got '" +
                       std::string(text) + "'");
   };
   if (text == "direct") return MipStrategy{};
+  if (text == "prefiltered") return MipStrategy{1, true};
   constexpr std::string_view k_prefix = "supersample:";
   if (!text.starts_with(k_prefix)) return bad();
   const std::string_view digits = text.substr(k_prefix.size());
@@ -157,6 +185,7 @@ Result<MipStrategy> mip_strategy_from_string(std::string_view text) {
 ComposeOptions options_for(Method method, MipStrategy strategy) {
   ComposeOptions o;
   o.supersample = strategy.supersample;
+  o.prefiltered = strategy.prefiltered;
   switch (method) {
     case Method::Linear: o.method = Mode::Linear; break;
     case Method::BlendMap: o.method = Mode::BlendMap; break;
@@ -174,6 +203,9 @@ Result<PackedScene> pack_scene(const SceneAssets& assets, const ComposeOptions& 
     return make_error(d.source_path + ": /materials: need 1 to 16 materials");
   if (options.supersample < 1 || options.supersample > 64 || !std::has_single_bit(options.supersample))
     return make_error("supersample: must be a power of two from 1 to 64, got " + std::to_string(options.supersample));
+  if (options.prefiltered && options.supersample != 1)
+    return make_error("mip strategy: prefiltered takes one sample per texel, got supersample " +
+                      std::to_string(options.supersample));
 
   PackedScene out;
   gpu::TvtComposeParams& p = out.params;
@@ -187,6 +219,9 @@ Result<PackedScene> pack_scene(const SceneAssets& assets, const ComposeOptions& 
   p.method_override = options.method ? mode_code(*options.method) : -1;
   p.dpt_layer_limit = int(options.dpt_layer_limit);
   p.supersample = int(options.supersample);
+  p.prefiltered = options.prefiltered ? 1 : 0;
+  p.prefilter_patch_lo = 0.5f;
+  p.prefilter_patch_hi = 2.0f;
   p.linear_boost = float(d.linear_boost);
   out.weights = assets.weights.data;
 
@@ -207,6 +242,7 @@ Result<PackedScene> pack_scene(const SceneAssets& assets, const ComposeOptions& 
     g.mip_count = info.mip_count;
     g.texel_offset = uint32_t(out.texel_words);
     for (int l = 0; l < g.mip_count; ++l) out.texel_words += (size_t(g.resolution) >> l) * (size_t(g.resolution) >> l);
+    out.texel_words += size_t(gpu::TVT_MATERIAL_STATS_WORDS);
     g.meta_offset = gpu::TVT_NO_META;
     // Not loaded yet: an FBPB block promises features (checked when the material is loaded).
     const bool has_features = info.meta && (!info.features_known || info.feature_count > 0);
@@ -263,6 +299,8 @@ Result<PackedScene> pack_scene(const SceneAssets& assets, const ComposeOptions& 
       gl.height_h = float(l.h);
       gl.salt = gpu::tvt_salt(d.seed, uint32_t(n), uint32_t(k), 3u);
       gl.patch_texels = float(double(gl.patch_fp) / 256.0);
+      const std::array<double, 3> e = bilerp_power_expectation(l.w);
+      for (size_t i = 0; i < 3; ++i) gl.expect[i] = float(e[i]);
     }
   }
   out.cache_->layout.assign(p.materials, p.materials + d.materials.size());

@@ -22,6 +22,9 @@ struct ComposeOptions {
   // s: up to s*s sub-samples per texel, power of two 1 ... 64; a texel of mip m takes
   // min(s, 2^m)^2, never more samples than the level-0 texels it covers (mip 0 is direct).
   uint32_t supersample = 1;
+  // Mips >= 1 composed with the expected coverage of what is smaller than their footprint
+  // (MipStrategy::prefiltered); one sample per texel, supersample must be 1.
+  bool prefiltered = false;
   // Hex-tiling: unset follows each material's "hex"; true turns it on for every material it
   // applies to (with the scene's parameters where given, else the defaults); false turns it off.
   std::optional<bool> hex;
@@ -30,14 +33,19 @@ struct ComposeOptions {
 // How pages of mip m >= 1 are composed, the user's accuracy/speed knob ("mip strategy"):
 //   direct          one sample per texel, materials read at the footprint's LOD;
 //   supersample:S   the average of min(S, 2^m)^2 samples per texel (S a power of two, 2 ... 64),
-//                   each a direct composition of its share of the footprint.
+//                   each a direct composition of its share of the footprint;
+//   prefiltered     one sample per texel, with the expected coverage of the DPT patches, FBPB
+//                   features and blend-map heights that are smaller than the footprint, from the
+//                   statistics of the material's texels (docs/composition.md, "Prefiltered mips").
 // Mip 0 is the same under every strategy. Cost and error per mip: docs/benchmarks.md
 // ("bench mips").
 struct MipStrategy {
-  uint32_t supersample = 1;  // 1: direct
+  uint32_t supersample = 1;  // 1: direct or prefiltered
+  bool prefiltered = false;
+  bool direct() const { return supersample <= 1 && !prefiltered; }
   friend bool operator==(const MipStrategy&, const MipStrategy&) = default;
 };
-std::string to_string(MipStrategy strategy);  // "direct", "supersample:4"
+std::string to_string(MipStrategy strategy);  // "direct", "supersample:4", "prefiltered"
 // `text` as written above; the error lists the accepted forms.
 Result<MipStrategy> mip_strategy_from_string(std::string_view text);
 

@@ -1,6 +1,7 @@
 #include "compose/reference_compositor.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 
 #include "compose/material_culling.h"
@@ -28,6 +29,50 @@ double smoothstep(double e0, double e1, double x) {
 double blend_map(double b, double a, double s) {
   b = clamp01(b);
   return smoothstep(1.0 - b - s, 1.0 - b + s, s + a * (1.0 - 2.0 * s));
+}
+
+// The prefiltered blend map (docs/composition.md, "Prefiltered mips"): with A uniform over
+// [mean - h, mean + h], h = sqrt(3 var), the means over A of blend_map(b, A, s) (`e`) and of
+// blend_map(b, A, s) * (A - mean) (`dev`, what the colour's covariance with A multiplies).
+// blend_map is smoothstep(t) of t = c0 + c1 A, so both are differences of the antiderivatives
+// of smoothstep(t) and t * smoothstep(t) over [t0, t1]. Below a width of 1/200 in t, the
+// point value (dev = 0).
+double smoothstep_integral(double t) {  // of the clamped smoothstep, from 0
+  if (t <= 0.0) return 0.0;
+  if (t >= 1.0) return t - 0.5;
+  return t * t * t * (1.0 - 0.5 * t);
+}
+double smoothstep_moment(double t) {  // of t * smoothstep(t), from 0
+  if (t <= 0.0) return 0.0;
+  if (t >= 1.0) return 0.35 + 0.5 * (t * t - 1.0);
+  return t * t * t * t * (0.75 - 0.4 * t);
+}
+void blend_map_expected(double b, double a_mean, double a_var, double s, double& e, double& dev) {
+  b = clamp01(b);
+  const double c1 = (1.0 - 2.0 * s) / (2.0 * s);
+  const double half = c1 * std::sqrt(3.0 * std::max(a_var, 0.0));
+  if (!(half >= 2.5e-3)) {
+    e = blend_map(b, a_mean, s);
+    dev = 0.0;
+    return;
+  }
+  const double tm = (b + 2.0 * s - 1.0) / (2.0 * s) + c1 * a_mean;
+  const double t0 = tm - half, t1 = tm + half;
+  e = clamp01((smoothstep_integral(t1) - smoothstep_integral(t0)) / (2.0 * half));
+  dev = ((smoothstep_moment(t1) - smoothstep_moment(t0)) / (2.0 * half) - tm * e) / c1;
+}
+
+// E[bilerp(m)^W] of a DPT layer whose corner masks are 1 with probability q
+// (TvtDptLayer::expect).
+double patch_expectation(const gpu::TvtDptLayer& L, double q) {
+  const double r = 1.0 - q;
+  return q * q * q * q + double(L.expect[0]) * q * r * r * r + double(L.expect[1]) * q * q * r * r +
+         double(L.expect[2]) * q * q * q * r;
+}
+
+// The material LOD at which the direct FBPB fade reaches 0.
+double fbpb_fade_end(const gpu::TvtMaterial& m) {
+  return m.fbpb_fade_hi > m.fbpb_fade_lo ? double(m.fbpb_fade_hi) : double(m.fbpb_fade_lo);
 }
 
 // Linear fade: 0 at or below lo, 1 at or above hi (a step at lo when hi <= lo).
@@ -110,6 +155,27 @@ struct Ctx {
     return a * (1 - t) + bilinear(m, l1, u, v) * t;
   }
 
+  // The statistics block word `i` of material m (TVT_MATERIAL_STATS_WORDS).
+  double stat(const gpu::TvtMaterial& m, int i) const {
+    const size_t r = size_t(m.resolution);
+    return double(std::bit_cast<float>(s.texels(index_of(m))[(4 * r * r - 1) / 3 + size_t(i)]));
+  }
+
+  // Variance of A and its covariances with R, G, B within a footprint of material LOD `lod`,
+  // interpolated between levels as trilinear() interpolates the texels.
+  glm::dvec4 a_stats(const gpu::TvtMaterial& m, double lod) const {
+    const double l = std::clamp(lod, 0.0, double(std::min(m.mip_count - 1, 14)));
+    const int l0 = int(std::floor(l));
+    const int l1 = std::min(l0 + 1, std::min(m.mip_count - 1, 14));
+    const double t = l - l0;
+    glm::dvec4 a, b;
+    for (int i = 0; i < 4; ++i) {
+      a[i] = stat(m, 4 * l0 + i);
+      b[i] = stat(m, 4 * l1 + i);
+    }
+    return a * (1.0 - t) + b * t;
+  }
+
   // Material sample at a terrain position: the tiled texture, or hex-tiling where it is on.
   glm::dvec4 sample_material(const gpu::TvtMaterial& m, int64_t x_fp, int64_t y_fp, double lod) const {
     double u, v;
@@ -170,36 +236,67 @@ struct Ctx {
   }
 
   // DPT (eq. 4.1–4.4, Algorithms 2–3): blend weight b and patch height h for material m.
+  // Prefiltered (`a_var` >= 0 given): a layer whose patches are small against the footprint
+  // takes its expected coverage instead of its point value, and the blend maps their mean
+  // over A; `dev` is the blend map's covariance term (blend_map_expected).
   void dpt(const gpu::TvtMaterial& m, int64_t x_fp, int64_t y_fp, double footprint, double plain, double height_a,
-           double& b_out, double& h_out) const {
+           double& b_out, double& h_out, bool prefiltered = false, double a_var = 0.0, double* dev = nullptr) const {
     double b = 0, h = 0, fade_max = 0;
     for (int k = 0; k < m.dpt_layer_count; ++k) {
       const gpu::TvtDptLayer& L = m.dpt[k];
       const double fade = ramp(double(L.patch_texels) / footprint, m.dpt_fade_lo, m.dpt_fade_hi);  // eq 4.4
+      if (prefiltered) {
+        const double exact = ramp(double(L.patch_texels) / footprint, double(p.prefilter_patch_lo), double(p.prefilter_patch_hi));
+        // The layer is present as at level 0; its point value is blended with its expectation
+        // by how much of the footprint one patch covers.
+        const double present = ramp(double(L.patch_texels), m.dpt_fade_lo, m.dpt_fade_hi);
+        fade_max = std::max(fade_max, present);
+        if (present <= 0.0) continue;
+        const double q = safe_pow(plain, double(L.exp_p) / std::max(double(L.exp_r), 1e-6));  // P(r^R <= p^P)
+        double term = (1.0 - exact) * patch_expectation(L, clamp01(q));
+        if (exact > 0.0) term += exact * patch_value(m, L, x_fp, y_fp);
+        b += present * term;
+        h += present * term * L.height_h;
+        continue;
+      }
       fade_max = std::max(fade_max, fade);
       if (fade <= 0.0) continue;
-      const int64_t ps = L.patch_fp;
-      const int64_t ix = tvt_floor_div(x_fp, ps), iy = tvt_floor_div(y_fp, ps);
-      const double fx = double(x_fp - ix * ps) / double(ps), fy = double(y_fp - iy * ps) / double(ps);
-      double mask[2][2];
-      for (int cy = 0; cy < 2; ++cy)
-        for (int cx = 0; cx < 2; ++cx) {
-          const int64_t jx = ix + cx, jy = iy + cy;
-          const double pj = safe_pow(weight(m.weight_layer, jx * ps + ps / 2, jy * ps + ps / 2), L.exp_p);  // eq 4.1
-          const double rj = safe_pow(gpu::tvt_rand01(gpu::tvt_hash_coord(jx, jy, L.salt)), L.exp_r);
-          mask[cy][cx] = (pj > 0.0 && rj <= pj) ? 1.0 : 0.0;  // eq 4.2
-        }
-      const double bl = (mask[0][0] * (1 - fx) + mask[0][1] * fx) * (1 - fy) + (mask[1][0] * (1 - fx) + mask[1][1] * fx) * fy;
-      const double w = safe_pow(bl, L.exp_w);  // eq 4.3
+      const double w = patch_value(m, L, x_fp, y_fp);
       b += fade * w;
       h += fade * w * L.height_h;
     }
     b = std::min(b, 1.0);
     h = std::min(h, 1.0);
+    if (prefiltered) {
+      double e_patch, d_patch, e_plain, d_plain;
+      blend_map_expected(b, height_a, a_var, m.blend_sharpness, e_patch, d_patch);
+      blend_map_expected(plain, height_a, a_var, m.blend_sharpness, e_plain, d_plain);
+      b_out = fade_max * e_patch + (1.0 - fade_max) * e_plain;
+      if (dev) *dev = fade_max * d_patch + (1.0 - fade_max) * d_plain;
+      h_out = h;
+      return;
+    }
     b = blend_map(b, height_a, m.blend_sharpness);
     // When even the largest layer's patches are too small, fall back to the plain weight.
     b_out = fade_max * b + (1.0 - fade_max) * blend_map(plain, height_a, m.blend_sharpness);
     h_out = h;
+  }
+
+  // One DPT layer's w (eq 4.1-4.3) at a terrain position.
+  double patch_value(const gpu::TvtMaterial& m, const gpu::TvtDptLayer& L, int64_t x_fp, int64_t y_fp) const {
+    const int64_t ps = L.patch_fp;
+    const int64_t ix = tvt_floor_div(x_fp, ps), iy = tvt_floor_div(y_fp, ps);
+    const double fx = double(x_fp - ix * ps) / double(ps), fy = double(y_fp - iy * ps) / double(ps);
+    double mask[2][2];
+    for (int cy = 0; cy < 2; ++cy)
+      for (int cx = 0; cx < 2; ++cx) {
+        const int64_t jx = ix + cx, jy = iy + cy;
+        const double pj = safe_pow(weight(m.weight_layer, jx * ps + ps / 2, jy * ps + ps / 2), L.exp_p);  // eq 4.1
+        const double rj = safe_pow(gpu::tvt_rand01(gpu::tvt_hash_coord(jx, jy, L.salt)), L.exp_r);
+        mask[cy][cx] = (pj > 0.0 && rj <= pj) ? 1.0 : 0.0;  // eq 4.2
+      }
+    const double bl = (mask[0][0] * (1 - fx) + mask[0][1] * fx) * (1 - fy) + (mask[1][0] * (1 - fx) + mask[1][1] * fx) * fy;
+    return safe_pow(bl, L.exp_w);  // eq 4.3
   }
 };
 
@@ -211,7 +308,10 @@ namespace {
 
 // `mask`: materials the page may show (MaterialCuller); the others contribute b = 0 exactly, so
 // they are skipped without reading their texels.
-glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, double footprint, uint32_t mask) {
+// `prefiltered`: the composition of docs/composition.md, "Prefiltered mips" (mips >= 1 of the
+// prefiltered strategy).
+glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, double footprint, uint32_t mask,
+                          bool prefiltered = false) {
   const Ctx c(scene);
   const gpu::TvtComposeParams& p = scene.params;
   footprint = std::isfinite(footprint) ? std::max(footprint, 1.0 / 256.0) : 1.0;
@@ -239,20 +339,58 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
     double b = 0.0;
     double height = colour.a;
     bool visible = false;
+    // Prefiltered: the spread of A within the footprint, and the blend map's covariance term
+    // with it (zero: no correction), whose colour part is the regression of RGB on A.
+    const glm::dvec4 a_stats = prefiltered ? c.a_stats(m, lod) : glm::dvec4(0.0);
+    double dev = 0.0;
+    bool dev_height = false;  // the layer's height is its A: A's own deviation shifts it too
+    double feature_shift = 0.0;  // prefiltered FBPB: weight of the features' colour offset
 
     if (mode == gpu::TVT_MODE_LINEAR) {
       // Bloom: weights normalised over the layers so far, boosted, clamped.
       b = weight_sum > 0.0 ? std::min(1.0, double(p.linear_boost) * plain / weight_sum) : 0.0;
     } else if (mode == gpu::TVT_MODE_BLENDMAP) {
-      b = blend_map(plain, colour.a, m.blend_sharpness);
+      if (prefiltered) {
+        blend_map_expected(plain, colour.a, a_stats.x, m.blend_sharpness, b, dev);
+        dev_height = true;
+      } else {
+        b = blend_map(plain, colour.a, m.blend_sharpness);
+      }
     } else if (mode == gpu::TVT_MODE_DPT) {
-      c.dpt(m, x_fp, y_fp, footprint, plain, colour.a, b, height);
+      c.dpt(m, x_fp, y_fp, footprint, plain, colour.a, b, height, prefiltered, a_stats.x, &dev);
     } else {  // FBPB, FBPB+DPT
       double non_feature = 0.0;  // what a non-feature texel blends with: p (FBPB) or DPT's b
       double dpt_h = colour.a;
-      if (mode == gpu::TVT_MODE_FBPB_DPT) c.dpt(m, x_fp, y_fp, footprint, plain, colour.a, non_feature, dpt_h);
-      const double fade = 1.0 - ramp(lod, m.fbpb_fade_lo, m.fbpb_fade_hi);
-      const double fallback = mode == gpu::TVT_MODE_FBPB_DPT ? non_feature : blend_map(plain, colour.a, m.blend_sharpness);
+      if (mode == gpu::TVT_MODE_FBPB_DPT) c.dpt(m, x_fp, y_fp, footprint, plain, colour.a, non_feature, dpt_h, prefiltered, a_stats.x);
+      // Prefiltered: features stay exact (coherent per feature) until the fade's end, then
+      // give way to their expectation over one LOD, where they span about a texel.
+      const double fade = prefiltered ? 1.0 - ramp(lod, fbpb_fade_end(m), fbpb_fade_end(m) + 1.0)
+                                       : 1.0 - ramp(lod, m.fbpb_fade_lo, m.fbpb_fade_hi);
+      double fallback = 0.0;
+      if (mode == gpu::TVT_MODE_FBPB_DPT) {
+        fallback = non_feature;
+      } else if (prefiltered) {
+        double unused;
+        blend_map_expected(plain, colour.a, a_stats.x, m.blend_sharpness, fallback, unused);
+      } else {
+        fallback = blend_map(plain, colour.a, m.blend_sharpness);
+      }
+      if (prefiltered) {
+        // Features smaller than the footprint: their expected w (eq 3.1) over the feature
+        // fraction D of the texture, each visible with probability min(p Cf, 1), mixed with
+        // the level-0 fallback as level 0 mixes them.
+        const double nf = mode == gpu::TVT_MODE_FBPB_DPT ? non_feature : plain;
+        const double d_frac = c.stat(m, gpu::TVT_STATS_FEATURE_FRACTION), soft = c.stat(m, gpu::TVT_STATS_FEATURE_SOFT);
+        const double expected = d_frac * std::min(plain * double(m.cf), 1.0) * std::min(double(m.cm) * std::max(plain, soft), 1.0) +
+                                (1.0 - d_frac) * std::min(nf * double(m.cn), 1.0);
+        const double fade0 = 1.0 - ramp(c.material_lod(m, 1.0), m.fbpb_fade_lo, m.fbpb_fade_hi);
+        fallback = fade0 * expected + (1.0 - fade0) * fallback;
+        // E[b colour] - E[b] mean: feature texels (their own mean colour) take w_F, the others
+        // w_N, so the shift is D (w_F - w_N) times the features' colour offset.
+        feature_shift = (1.0 - fade) * fade0 * d_frac *
+                        (std::min(plain * double(m.cf), 1.0) * std::min(double(m.cm) * std::max(plain, soft), 1.0) -
+                         std::min(nf * double(m.cn), 1.0));
+      }
       double w = 0.0;
       if (fade > 0.0) {
         const int64_t R = m.resolution;
@@ -298,6 +436,17 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
     const double bn = (visible || !feature_above) ? clamp01(b) : 0.0;
     feature_above = feature_above || visible;
     result = glm::dvec4(glm::dvec3(result) * (1.0 - bn) + glm::dvec3(colour) * bn, result.a * (1.0 - bn) + height * bn);
+    if (prefiltered && bn > 0.0 && dev != 0.0 && a_stats.x > 1e-6) {
+      // E[b colour] = E[b] mean + beta E[b (A - mean)], beta = cov(A, colour) / var(A).
+      const glm::dvec3 beta = glm::dvec3(a_stats.y, a_stats.z, a_stats.w) / a_stats.x;
+      result = glm::dvec4(glm::dvec3(result) + beta * dev, result.a + (dev_height ? dev : 0.0));
+    }
+    if (prefiltered && bn > 0.0 && feature_shift != 0.0) {
+      glm::dvec4 offset;
+      for (int i = 0; i < 4; ++i) offset[i] = c.stat(m, gpu::TVT_STATS_FEATURE_COLOUR + i);
+      if (mode == gpu::TVT_MODE_FBPB_DPT) offset.a = 0.0;  // its height is DPT's, not A
+      result += offset * feature_shift;
+    }
   }
   for (int i = 0; i < 4; ++i) result[i] = clamp01(result[i]);
   return result;
@@ -316,7 +465,7 @@ glm::dvec4 compose_texel(const PackedScene& scene, uint32_t mip, int64_t x, int6
     for (int64_t sx = 0; sx < s; ++sx) {
       const int64_t xf = (x << sub_shift) + (((2 * sx + 1) << sub_shift) / (2 * s));
       const int64_t yf = (y << sub_shift) + (((2 * sy + 1) << sub_shift) / (2 * s));
-      sum += compose_sample(scene, xf, yf, footprint, mask);
+      sum += compose_sample(scene, xf, yf, footprint, mask, p.prefiltered != 0 && mip > 0);
     }
   return sum / double(s * s);
 }

@@ -36,7 +36,7 @@ uint64_t scene_identity(const SceneDesc& scene, Method method, MipStrategy strat
   uint64_t h = 0xcbf29ce484222325ull;
   h = fnv1a(h, k_page_format);
   h = fnv1a(h, to_string(method));
-  if (strategy.supersample > 1) h = fnv1a(h, to_string(strategy));
+  if (!strategy.direct()) h = fnv1a(h, to_string(strategy));
   h = fnv1a(h, scene_to_json(scene));
   h = fnv1a(h, file_stamp(scene.terrain.heightmap.image_path));
   for (const MaterialDesc& m : scene.materials) {

@@ -33,6 +33,7 @@ MaterialUploader::MaterialUploader(vk::Context& context, const PackedScene& scen
       mat.level_first.push_back(at);
       at += (size_t(m.resolution) >> l) * (size_t(m.resolution) >> l);
     }
+    at += size_t(gpu::TVT_MATERIAL_STATS_WORDS);  // the statistics travel with the 1x1 level
     mat.level_first.push_back(at);
     mat.texels = {m.texel_offset, at - m.texel_offset};
     TVT_CHECK(at <= scene.texel_words);

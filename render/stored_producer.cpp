@@ -46,7 +46,7 @@ Status StoredProducer::matches(const PageStoreReader& store, const VtConfig& vt,
   if (d.layers.empty() || d.layers[0] != PageLayerFormat::rgba8_albedo_height)
     return make_error(path + ": layers[0]: not RGBA8 albedo+height, which the cache holds");
   if (scene_hash != 0 && d.scene_hash != 0 && d.scene_hash != scene_hash)
-    return make_error(path + ": scene_hash: the store was baked from another scene or method (producer '" +
+    return make_error(path + ": scene_hash: the store was baked from another scene, method or mip strategy (producer '" +
                       d.producer + "'); its pages would not match this scene");
   return Ok{};
 }

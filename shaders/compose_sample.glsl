@@ -15,6 +15,33 @@ float ramp(float v, float lo, float hi) {
   return clamp((v - lo) / (hi - lo), 0.0, 1.0);
 }
 
+// Prefiltered blend map (reference_compositor.cpp blend_map_expected): the means over A uniform
+// on [mean - h, mean + h], h = sqrt(3 var), of blend_map and of blend_map * (A - mean).
+float smoothstep_integral(float t) {
+  if (t <= 0.0) return 0.0;
+  if (t >= 1.0) return t - 0.5;
+  return t * t * t * (1.0 - 0.5 * t);
+}
+float smoothstep_moment(float t) {
+  if (t <= 0.0) return 0.0;
+  if (t >= 1.0) return 0.35 + 0.5 * (t * t - 1.0);
+  return t * t * t * t * (0.75 - 0.4 * t);
+}
+void blend_map_expected(float b, float a_mean, float a_var, float s, out float e, out float dev) {
+  b = clamp01(b);
+  const float c1 = (1.0 - 2.0 * s) / (2.0 * s);
+  const float half_width = c1 * sqrt(3.0 * max(a_var, 0.0));
+  if (!(half_width >= 2.5e-3)) {
+    e = blend_map(b, a_mean, s);
+    dev = 0.0;
+    return;
+  }
+  const float tm = (b + 2.0 * s - 1.0) / (2.0 * s) + c1 * a_mean;
+  const float t0 = tm - half_width, t1 = tm + half_width;
+  e = clamp01((smoothstep_integral(t1) - smoothstep_integral(t0)) / (2.0 * half_width));
+  dev = ((smoothstep_moment(t1) - smoothstep_moment(t0)) / (2.0 * half_width) - tm * e) / c1;
+}
+
 // Bilinear weight at a terrain position, clamped at the terrain edge. The position becomes a
 // float only after clamping, as a fraction of the terrain: its rounding (2^-24 of the terrain,
 // at most 2^-11 of a weight texel for grids up to 8192) is far below what the smooth weight
@@ -42,6 +69,24 @@ vec4 material_texel(int n, int level, int x, int y) {
   const uint rl = res >> uint(level);
   const uint offset = P.materials[n].texel_offset + (res * res - rl * rl) / 3u * 4u;
   return unpackUnorm4x8(material_texels[offset + (uint(y) & (rl - 1u)) * rl + (uint(x) & (rl - 1u))]);
+}
+
+// Word i of material n's statistics block, after its 1x1 mip (TVT_MATERIAL_STATS_WORDS).
+float material_stat(int n, int i) {
+  const uint res = uint(P.materials[n].resolution);
+  return uintBitsToFloat(material_texels[P.materials[n].texel_offset + (4u * res * res - 1u) / 3u + uint(i)]);
+}
+
+// Variance of A and its covariances with R, G, B within a footprint of material LOD `lod`.
+vec4 material_a_stats(int n, float lod) {
+  const int top = min(P.materials[n].mip_count - 1, 14);
+  const float l = clamp(lod, 0.0, float(top));
+  const int l0 = int(floor(l));
+  const int l1 = min(l0 + 1, top);
+  const float t = l - float(l0);
+  const vec4 a = vec4(material_stat(n, 4 * l0), material_stat(n, 4 * l0 + 1), material_stat(n, 4 * l0 + 2), material_stat(n, 4 * l0 + 3));
+  const vec4 b = vec4(material_stat(n, 4 * l1), material_stat(n, 4 * l1 + 1), material_stat(n, 4 * l1 + 2), material_stat(n, 4 * l1 + 3));
+  return a * (1.0 - t) + b * t;
 }
 
 vec4 material_bilinear(int n, int level, float u, float v) {
@@ -155,58 +200,94 @@ vec4 material_at(int n, int64_t x_fp, int64_t y_fp, float lod, out int64_t gx, o
   return sample_material(n, float(gx & mask) + fx, float(gy & mask) + fy, lod);
 }
 
-// DPT eq 4.1-4.4, Algorithms 2-3.
-void dpt(int n, int64_t x_fp, int64_t y_fp, float footprint, float plain, float height_a, out float b_out, out float h_out) {
+// E[bilerp(m)^W] of DPT layer k of material n for corner masks set with probability q.
+float patch_expectation(int n, int k, float q) {
+  const float r = 1.0 - q;
+  return q * q * q * q + P.materials[n].dpt[k].expect[0] * q * r * r * r + P.materials[n].dpt[k].expect[1] * q * q * r * r +
+         P.materials[n].dpt[k].expect[2] * q * q * q * r;
+}
+
+// One DPT layer's w (eq 4.1-4.3) at a terrain position.
+float patch_value(int n, int k, int64_t x_fp, int64_t y_fp) {
+  const int64_t ps = P.materials[n].dpt[k].patch_fp;
+  int64_t ix, iy;
+  float fx, fy;
+  if (x_fp >= 0 && y_fp >= 0 && x_fp < int64_t(1 << 30) && y_fp < int64_t(1 << 30) && ps < int64_t(1 << 30)) {
+    // Positions below 2^22 texels (every page of V <= 2^22): 32-bit divisions, the same quotients.
+    const int ps32 = int(ps), x32 = int(x_fp), y32 = int(y_fp);
+    const int ix32 = x32 / ps32, iy32 = y32 / ps32;
+    fx = float(x32 - ix32 * ps32) / float(ps32);
+    fy = float(y32 - iy32 * ps32) / float(ps32);
+    ix = int64_t(ix32);
+    iy = int64_t(iy32);
+  } else {
+    ix = tvt_floor_div(x_fp, ps);
+    iy = tvt_floor_div(y_fp, ps);
+    fx = float(x_fp - ix * ps) / float(ps);
+    fy = float(y_fp - iy * ps) / float(ps);
+  }
+  // m_j = p_j > 0 && r_j^R <= p_j^P (eq 4.1, 4.2), compared in the log domain: two log2
+  // instead of two pow; r is never 0, and p = 0 fails the first test.
+  const int layer_w = P.materials[n].weight_layer;
+  const float ep = P.materials[n].dpt[k].exp_p, er = P.materials[n].dpt[k].exp_r;
+  const uint salt = P.materials[n].dpt[k].salt;
+  const int64_t half_patch = ps / 2;
+  float m[4];
+  for (int c = 0; c < 4; ++c) {
+    const int64_t jx = ix + int64_t(c & 1), jy = iy + int64_t(c >> 1);
+    const float w = weight_at(layer_w, jx * ps + half_patch, jy * ps + half_patch);
+    const float r = tvt_rand01(tvt_hash_coord(jx, jy, salt));
+    m[c] = (w > 0.0 && er * log2(r) <= ep * log2(w)) ? 1.0 : 0.0;
+  }
+  const float bl = mix(mix(m[0], m[1], fx), mix(m[2], m[3], fx), fy);
+  return safe_pow(bl, P.materials[n].dpt[k].exp_w);
+}
+
+// DPT eq 4.1-4.4, Algorithms 2-3. Prefiltered: as reference_compositor.cpp dpt().
+void dpt(int n, int64_t x_fp, int64_t y_fp, float footprint, float plain, float height_a, bool prefiltered, float a_var,
+         out float b_out, out float h_out, out float dev) {
   float b = 0.0, h = 0.0, fade_max = 0.0;
   const int layers = P.materials[n].dpt_layer_count;
   for (int k = 0; k < layers; ++k) {
     const float fade = ramp(P.materials[n].dpt[k].patch_texels / footprint, P.materials[n].dpt_fade_lo,
                             P.materials[n].dpt_fade_hi);
+    if (prefiltered) {
+      const float present = ramp(P.materials[n].dpt[k].patch_texels, P.materials[n].dpt_fade_lo, P.materials[n].dpt_fade_hi);
+      const float exact = ramp(P.materials[n].dpt[k].patch_texels / footprint, P.prefilter_patch_lo, P.prefilter_patch_hi);
+      fade_max = max(fade_max, present);
+      if (present <= 0.0) continue;
+      const float q = safe_pow(plain, P.materials[n].dpt[k].exp_p / max(P.materials[n].dpt[k].exp_r, 1e-6));
+      float term = (1.0 - exact) * patch_expectation(n, k, clamp01(q));
+      if (exact > 0.0) term += exact * patch_value(n, k, x_fp, y_fp);
+      b += present * term;
+      h += present * term * P.materials[n].dpt[k].height_h;
+      continue;
+    }
     fade_max = max(fade_max, fade);
     if (fade <= 0.0) continue;
-    const int64_t ps = P.materials[n].dpt[k].patch_fp;
-    int64_t ix, iy;
-    float fx, fy;
-    if (x_fp >= 0 && y_fp >= 0 && x_fp < int64_t(1 << 30) && y_fp < int64_t(1 << 30) && ps < int64_t(1 << 30)) {
-      // Positions below 2^22 texels (every page of V <= 2^22): 32-bit divisions, the same quotients.
-      const int ps32 = int(ps), x32 = int(x_fp), y32 = int(y_fp);
-      const int ix32 = x32 / ps32, iy32 = y32 / ps32;
-      fx = float(x32 - ix32 * ps32) / float(ps32);
-      fy = float(y32 - iy32 * ps32) / float(ps32);
-      ix = int64_t(ix32);
-      iy = int64_t(iy32);
-    } else {
-      ix = tvt_floor_div(x_fp, ps);
-      iy = tvt_floor_div(y_fp, ps);
-      fx = float(x_fp - ix * ps) / float(ps);
-      fy = float(y_fp - iy * ps) / float(ps);
-    }
-    // m_j = p_j > 0 && r_j^R <= p_j^P (eq 4.1, 4.2), compared in the log domain: two log2
-    // instead of two pow; r is never 0, and p = 0 fails the first test.
-    const int layer_w = P.materials[n].weight_layer;
-    const float ep = P.materials[n].dpt[k].exp_p, er = P.materials[n].dpt[k].exp_r;
-    const uint salt = P.materials[n].dpt[k].salt;
-    const int64_t half_patch = ps / 2;
-    float m[4];
-    for (int c = 0; c < 4; ++c) {
-      const int64_t jx = ix + int64_t(c & 1), jy = iy + int64_t(c >> 1);
-      const float w = weight_at(layer_w, jx * ps + half_patch, jy * ps + half_patch);
-      const float r = tvt_rand01(tvt_hash_coord(jx, jy, salt));
-      m[c] = (w > 0.0 && er * log2(r) <= ep * log2(w)) ? 1.0 : 0.0;
-    }
-    const float bl = mix(mix(m[0], m[1], fx), mix(m[2], m[3], fx), fy);
-    const float w = safe_pow(bl, P.materials[n].dpt[k].exp_w);
+    const float w = patch_value(n, k, x_fp, y_fp);
     b += fade * w;
     h += fade * w * P.materials[n].dpt[k].height_h;
   }
   b = min(b, 1.0);
   h = min(h, 1.0);
-  b = blend_map(b, height_a, P.materials[n].blend_sharpness);
-  b_out = fade_max * b + (1.0 - fade_max) * blend_map(plain, height_a, P.materials[n].blend_sharpness);
   h_out = h;
+  const float s = P.materials[n].blend_sharpness;
+  if (prefiltered) {
+    float e_patch, d_patch, e_plain, d_plain;
+    blend_map_expected(b, height_a, a_var, s, e_patch, d_patch);
+    blend_map_expected(plain, height_a, a_var, s, e_plain, d_plain);
+    b_out = fade_max * e_patch + (1.0 - fade_max) * e_plain;
+    dev = fade_max * d_patch + (1.0 - fade_max) * d_plain;
+    return;
+  }
+  dev = 0.0;
+  b = blend_map(b, height_a, s);
+  b_out = fade_max * b + (1.0 - fade_max) * blend_map(plain, height_a, s);
 }
 
-vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_mask) {
+// `prefiltered`: mips >= 1 of the prefiltered strategy (reference_compositor.cpp).
+vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_mask, bool prefiltered) {
   footprint = (isnan(footprint) || isinf(footprint)) ? 1.0 : max(footprint, 1.0 / 256.0);
   float wts[TVT_MAX_MATERIALS];
   for (int n = 0; n < P.material_count; ++n)
@@ -231,19 +312,46 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
     float b = 0.0;
     float height = colour.a;
     bool visible = false;
+    const vec4 a_stats = prefiltered ? material_a_stats(n, lod) : vec4(0.0);
+    float dev = 0.0;
+    bool dev_height = false;
+    float feature_shift = 0.0;
+    const float s = P.materials[n].blend_sharpness;
 
     if (mode == TVT_MODE_LINEAR) {
       b = weight_sum > 0.0 ? min(1.0, P.linear_boost * plain / weight_sum) : 0.0;
     } else if (mode == TVT_MODE_BLENDMAP) {
-      b = blend_map(plain, colour.a, P.materials[n].blend_sharpness);
+      if (prefiltered) {
+        blend_map_expected(plain, colour.a, a_stats.x, s, b, dev);
+        dev_height = true;
+      } else {
+        b = blend_map(plain, colour.a, s);
+      }
     } else if (mode == TVT_MODE_DPT) {
-      dpt(n, x_fp, y_fp, footprint, plain, colour.a, b, height);
+      dpt(n, x_fp, y_fp, footprint, plain, colour.a, prefiltered, a_stats.x, b, height, dev);
     } else {
       float non_feature = 0.0;
       float dpt_h = colour.a;
-      if (mode == TVT_MODE_FBPB_DPT) dpt(n, x_fp, y_fp, footprint, plain, colour.a, non_feature, dpt_h);
-      const float fade = 1.0 - ramp(lod, P.materials[n].fbpb_fade_lo, P.materials[n].fbpb_fade_hi);
-      const float fallback = mode == TVT_MODE_FBPB_DPT ? non_feature : blend_map(plain, colour.a, P.materials[n].blend_sharpness);
+      float unused;
+      if (mode == TVT_MODE_FBPB_DPT) dpt(n, x_fp, y_fp, footprint, plain, colour.a, prefiltered, a_stats.x, non_feature, dpt_h, unused);
+      const float fade_end = max(P.materials[n].fbpb_fade_hi, P.materials[n].fbpb_fade_lo);
+      const float fade = prefiltered ? 1.0 - ramp(lod, fade_end, fade_end + 1.0)
+                                     : 1.0 - ramp(lod, P.materials[n].fbpb_fade_lo, P.materials[n].fbpb_fade_hi);
+      float fallback;
+      if (mode == TVT_MODE_FBPB_DPT) fallback = non_feature;
+      else if (prefiltered) blend_map_expected(plain, colour.a, a_stats.x, s, fallback, unused);
+      else fallback = blend_map(plain, colour.a, s);
+      if (prefiltered) {
+        const float nf = mode == TVT_MODE_FBPB_DPT ? non_feature : plain;
+        const float d_frac = material_stat(n, TVT_STATS_FEATURE_FRACTION), soft = material_stat(n, TVT_STATS_FEATURE_SOFT);
+        const float expected = d_frac * min(plain * P.materials[n].cf, 1.0) * min(P.materials[n].cm * max(plain, soft), 1.0) +
+                               (1.0 - d_frac) * min(nf * P.materials[n].cn, 1.0);
+        const float fade0 = 1.0 - ramp(material_lod(n, 1.0), P.materials[n].fbpb_fade_lo, P.materials[n].fbpb_fade_hi);
+        fallback = fade0 * expected + (1.0 - fade0) * fallback;
+        feature_shift = (1.0 - fade) * fade0 * d_frac *
+                        (min(plain * P.materials[n].cf, 1.0) * min(P.materials[n].cm * max(plain, soft), 1.0) -
+                         min(nf * P.materials[n].cn, 1.0));
+      }
       float w = 0.0;
       if (fade > 0.0) {
         const int64_t R = int64_t(P.materials[n].resolution);
@@ -284,6 +392,13 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
     const float bn = (visible || !feature_above) ? clamp01(b) : 0.0;
     feature_above = feature_above || visible;
     result = vec4(mix(result.rgb, colour.rgb, bn), mix(result.a, height, bn));
+    if (prefiltered && bn > 0.0 && dev != 0.0 && a_stats.x > 1e-6)
+      result += vec4(a_stats.yzw / a_stats.x * dev, dev_height ? dev : 0.0);
+    if (prefiltered && bn > 0.0 && feature_shift != 0.0) {
+      const float offset_a = mode == TVT_MODE_FBPB_DPT ? 0.0 : material_stat(n, TVT_STATS_FEATURE_COLOUR + 3);
+      result += vec4(material_stat(n, TVT_STATS_FEATURE_COLOUR), material_stat(n, TVT_STATS_FEATURE_COLOUR + 1),
+                     material_stat(n, TVT_STATS_FEATURE_COLOUR + 2), offset_a) * feature_shift;
+    }
   }
   return vec4(clamp01(result.r), clamp01(result.g), clamp01(result.b), clamp01(result.a));
 }

@@ -160,7 +160,7 @@ vec4 direct_texel(i64vec2 i, int mip) {
   const i64vec2 c = clamp(i, i64vec2(0), i64vec2(last));
   const int64_t sub = int64_t(mip + TVT_FIXED_BITS);
   const i64vec2 pos = (c << sub) + (int64_t(1) << (sub - int64_t(1)));
-  return compose_sample(pos.x, pos.y, exp2(float(mip)), 0xffffffffu);
+  return compose_sample(pos.x, pos.y, exp2(float(mip)), 0xffffffffu, false);
 }
 
 // Bilinear between the four texel centres around the position, weighted as the VT's
@@ -208,7 +208,7 @@ vec4 terrain_albedo(TerrainFragment f) {
   const i64vec2 sub = i64vec2(floor((f.local_texel - whole) * float(1 << TVT_FIXED_BITS)));
   const i64vec2 pos = (ti << int64_t(TVT_FIXED_BITS)) + sub;
   const float footprint = max(length(f.dtexel_dx), length(f.dtexel_dy));
-  const vec4 c = compose_sample(pos.x, pos.y, max(footprint, 1.0), 0xffffffffu);
+  const vec4 c = compose_sample(pos.x, pos.y, max(footprint, 1.0), 0xffffffffu, false);
   g_height_gradient = screen_height_gradient(c.a, f.dtexel_dx, f.dtexel_dy);
   return c;
 }

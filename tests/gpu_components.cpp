@@ -206,13 +206,15 @@ class ComposeComponent : public GpuTest {
     ASSERT_TRUE(loaded.ok()) << loaded.error().message;
     auto assets = load_scene_assets(loaded.value());
     ASSERT_TRUE(assets.ok()) << assets.error().message;
-    auto packed = pack_scene(assets.value(), options_for(Method::FbpbDpt));
+    // The API's default mip strategy, as the VTs below use it.
+    const MipStrategy strategy = mip_strategy_from_string(terravt::VirtualTextureDesc{}.mip_strategy).value();
+    auto packed = pack_scene(assets.value(), options_for(Method::FbpbDpt, strategy));
     ASSERT_TRUE(packed.ok());
     auto composer = GpuComposer::create(ctx(), packed.value(), 16);
     ASSERT_TRUE(composer.ok()) << composer.error().message;
     StoreDesc sd;
     sd.vt = assets->desc.vt;
-    sd.scene_hash = store_scene_identity(assets->desc, Method::FbpbDpt, {}, StorePyramid::composed);
+    sd.scene_hash = store_scene_identity(assets->desc, Method::FbpbDpt, strategy, StorePyramid::composed);
     sd.producer = "gpu fbpb+dpt2";
     f.store = (f.dir / "scene.tvt").string();
     auto plan = bake_plan(sd.vt, BakeRegion{});

@@ -182,6 +182,20 @@ TEST_F(GpuCompose, SupersampledMipsMatchReference) {
   expect_agreement(assets, o, {{0, 40, 60}, {1, 20, 30}, {3, 5, 7}}, "supersample 64 (capped)");
 }
 
+// The prefiltered strategy: every method, mip 0 (direct) and coarse mips where patches and
+// features are far smaller than a texel, and the far corner of V = 2^24 (64-bit paths).
+TEST_F(GpuCompose, PrefilteredMipsMatchReferenceForEveryMethod) {
+  const SceneAssets& assets = default_assets(16);
+  for (Method m : k_all_methods)
+    expect_agreement(assets, options_for(m, MipStrategy{1, true}), {{0, 40, 60}, {2, 20, 30}, {5, 1, 1}, {7, 0, 0}},
+                     "prefiltered " + std::string(to_string(m)));
+  const SceneAssets& far = default_assets(24);
+  const uint32_t last = uint32_t(far.desc.vt.pages_per_side(0) - 1);
+  for (Method m : {Method::FbpbDpt, Method::BlendMap})
+    expect_agreement(far, options_for(m, MipStrategy{1, true}), {{0, last, last}, {4, 4095, 4095}, {12, 15, 15}},
+                     "prefiltered far corner " + std::string(to_string(m)));
+}
+
 TEST_F(GpuCompose, PagesAreDeterministicAndBordersMatchNeighbours) {
   const SceneAssets& assets = default_assets(16);
   auto packed = pack_scene(assets, options_for(Method::FbpbDpt));

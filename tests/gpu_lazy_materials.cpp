@@ -47,6 +47,7 @@ uint64_t bytes_of(const PackedScene& s, const MaterialNeeds& needs) {
     const gpu::TvtMaterial& m = s.params.materials[n];
     for (int l = needs.finest_level[size_t(n)]; l < m.mip_count; ++l)
       bytes += 4ull * uint64_t(m.resolution >> l) * uint64_t(m.resolution >> l);
+    bytes += 4ull * uint64_t(gpu::TVT_MATERIAL_STATS_WORDS);  // the statistics, with the 1x1 level
     if ((needs.meta_mask & (1u << n)) && m.meta_offset != gpu::TVT_NO_META) bytes += 8ull * uint64_t(m.resolution) * uint64_t(m.resolution);
     bytes += 4ull * uint64_t(s.params.weight_width) * uint64_t(s.params.weight_height);
   }

@@ -40,22 +40,25 @@ TEST(BenchMipsCli, WritesJsonAndOnePlotPanelPerMethodWithACurvePerStrategy) {
       const nlohmann::json& m = j.at("methods").at(method).at(mip);
       const double direct = m.at("direct").at("psnr_db").get<double>();
       const double ss2 = m.at("supersample:2").at("psnr_db").get<double>();
+      const double pre = m.at("prefiltered").at("psnr_db").get<double>();
       EXPECT_TRUE(std::isfinite(direct) && direct > 10.0) << method << " mip " << mip;
+      EXPECT_TRUE(std::isfinite(pre) && pre > 10.0) << method << " mip " << mip;
       EXPECT_GT(ss2, direct) << method << " mip " << mip;  // supersampling gets closer to the filtered truth
       EXPECT_DOUBLE_EQ(m.at("direct").at("cost_vs_direct").get<double>(), 1.0);
     }
     EXPECT_TRUE(j.at("methods").at(method).at("2").contains("supersample:4"));
     EXPECT_FALSE(j.at("methods").at(method).at("1").contains("supersample:4"));  // capped at 2^mip
   }
-  // The SVG beside the JSON: two panels, three strategies in each (direct, 2 and 4), and the
-  // 35 dB target line.
+  // The SVG beside the JSON: two panels, four strategies in each (direct, prefiltered, 2 and
+  // 4), and the 35 dB target line.
   std::ifstream svg_in(dir / "mips.svg");
   const std::string svg((std::istreambuf_iterator<char>(svg_in)), {});
   ASSERT_FALSE(svg.empty());
   EXPECT_EQ(svg.rfind("<svg ", 0), 0u);
   EXPECT_NE(svg.find("</svg>"), std::string::npos);
   EXPECT_EQ(count(svg, "class=\"panel\""), 2u);
-  EXPECT_EQ(count(svg, "class=\"series\""), 6u);
+  EXPECT_EQ(count(svg, "class=\"series\""), 8u);
+  EXPECT_EQ(count(svg, "data-name=\"prefiltered\""), 2u);
   EXPECT_EQ(count(svg, "data-name=\"supersample:4\""), 2u);
   EXPECT_NE(svg.find(">blendmap<"), std::string::npos);
   EXPECT_NE(svg.find(">dpt2<"), std::string::npos);

@@ -3,6 +3,7 @@
 
 #include <cmath>
 
+#include "compose/material_source.h"
 #include "compose/reference_compositor.h"
 #include "compose/scene_identity.h"
 #include "shaders/shared/hash.h"
@@ -344,7 +345,7 @@ TEST(Mips, SupersamplingIsCappedAtTheLevel0TexelsATexelCovers) {
 }
 
 TEST(Mips, StrategyNamesRoundTripAndEverythingElseIsRefused) {
-  for (const char* name : {"direct", "supersample:2", "supersample:4", "supersample:64"}) {
+  for (const char* name : {"direct", "prefiltered", "supersample:2", "supersample:4", "supersample:64"}) {
     auto s = mip_strategy_from_string(name);
     ASSERT_TRUE(s.ok()) << name;
     EXPECT_EQ(to_string(s.value()), name);
@@ -353,7 +354,7 @@ TEST(Mips, StrategyNamesRoundTripAndEverythingElseIsRefused) {
   EXPECT_EQ(mip_strategy_from_string("supersample:8")->supersample, 8u);
   for (const char* bad : {"", "Direct", "supersample", "supersample:", "supersample:1", "supersample:3", "supersample:128",
                           "supersample:-2", "supersample:+4", "supersample:04x", "supersample: 4", "supersample:0",
-                          "supersample:999999999999", "prefiltered"}) {
+                          "supersample:999999999999", "Prefiltered", "prefiltered:2", "prefilter"}) {
     auto s = mip_strategy_from_string(bad);
     ASSERT_FALSE(s.ok()) << "'" << bad << "'";
     EXPECT_NE(s.error().message.find("supersample:S"), std::string::npos) << s.error().message;
@@ -367,6 +368,99 @@ TEST(Mips, TheStrategyIsPartOfTheSceneIdentityUnlessDirect) {
   EXPECT_EQ(scene_identity(scene, Method::Dpt2), scene_identity(scene, Method::Dpt2, MipStrategy{}));
   EXPECT_NE(scene_identity(scene, Method::Dpt2), scene_identity(scene, Method::Dpt2, MipStrategy{4}));
   EXPECT_NE(scene_identity(scene, Method::Dpt2, MipStrategy{2}), scene_identity(scene, Method::Dpt2, MipStrategy{4}));
+  const MipStrategy prefiltered{1, true};
+  EXPECT_EQ(mip_strategy_from_string("prefiltered").value(), prefiltered);
+  EXPECT_NE(scene_identity(scene, Method::Dpt2), scene_identity(scene, Method::Dpt2, prefiltered));
+  EXPECT_NE(scene_identity(scene, Method::Dpt2, MipStrategy{2}), scene_identity(scene, Method::Dpt2, prefiltered));
+}
+
+namespace {
+
+// A DPT layer of `patch` texels over a base, weight `w` everywhere; materials of constant colour.
+SceneAssets dpt_scene(double patch, float w, double p = 1, double r = 1, double wexp = 1) {
+  auto a = test::make_synthetic_assets({k_base, {{0, 250, 0, 200}, w, Mode::Dpt}});
+  a.desc.materials[1].dpt.layers = {{patch, p, r, wexp, 0.5}};
+  return a;
+}
+
+ComposeOptions prefiltered_options() {
+  ComposeOptions o;
+  o.prefiltered = true;
+  return o;
+}
+
+}  // namespace
+
+// Mip 0 is direct under the prefiltered strategy too; and it refuses supersampling on top.
+TEST(Prefiltered, Mip0IsTheDirectComposition) {
+  auto a = dpt_scene(6, 0.5f);
+  for (size_t i = 0; i < 16; ++i) a.weights.data[16 + i] = float(i % 3) / 2.f;
+  const PackedScene direct = pack(a), pre = pack(a, prefiltered_options());
+  for (int64_t y = 0; y < 8; ++y)
+    for (int64_t x = 0; x < 8; ++x) EXPECT_EQ(compose_texel_reference(direct, 0, x * 9, y * 5), compose_texel_reference(pre, 0, x * 9, y * 5));
+  ComposeOptions both = prefiltered_options();
+  both.supersample = 4;
+  EXPECT_FALSE(pack_scene(a, both).ok());
+}
+
+// Patches far smaller than a texel, over a material whose blend map A spreads over [0, 1]:
+// direct composition shows one patch's decision per texel, or (faded) the plain weight; the
+// prefiltered texel is the patches' expected coverage through the blend map's mean over A,
+// which is what the box filter of level 0 converges to. (Where A hardly varies, the blend map
+// is a sharp threshold of the patch ramps and the mean of the coverage is not its threshold:
+// docs/composition.md, "Prefiltered mips", says what that costs.)
+TEST(Prefiltered, ConvergesToTheBoxFilteredTruthWherePatchesAreSmall) {
+  // Patches of 2 texels, present at level 0 (fade from 0.5 to 1 texel), 256 to a mip-5 texel;
+  // P != R, where the coverage w^(P/R) is not the plain weight direct composition falls back to.
+  for (const double pexp : {0.5, 2.0}) {
+    SceneAssets a = dpt_scene(2, 0.5f, pexp, 1.0, 1.0);
+    a.desc.materials[1].dpt.fade_lo_texels = 0.5;
+    a.desc.materials[1].dpt.fade_hi_texels = 1.0;
+    ImageRGBA8 spread(16, 16);  // every A value 0..255 once, scattered
+    for (int i = 0; i < 256; ++i) {
+      uint8_t* t = spread.at(i % 16, i / 16);
+      t[0] = 0, t[1] = 250, t[2] = 0, t[3] = uint8_t((i * 97 + 13) % 256);
+    }
+    a.materials->edit(1).albedo = build_mip_chain(spread);
+    const PackedScene direct = pack(a), pre = pack(a, prefiltered_options());
+    double err_direct = 0, err_pre = 0;
+    for (int64_t y = 0; y < 4; ++y)
+      for (int64_t x = 0; x < 4; ++x) {
+        const double truth = ground_truth_texel(direct, 5, x + 8, y + 8).g;  // 32^2 level-0 texels
+        err_direct += std::abs(compose_texel_reference(direct, 5, x + 8, y + 8).g - truth);
+        err_pre += std::abs(compose_texel_reference(pre, 5, x + 8, y + 8).g - truth);
+      }
+    EXPECT_LT(err_pre / 16, 0.06) << "P = " << pexp;  // the truth's own noise: ~256 patch decisions a texel
+    EXPECT_LT(err_pre, 0.5 * err_direct) << "P = " << pexp;
+  }
+}
+
+// Where the footprint is below one patch the prefiltered texel is the exact (direct) one.
+TEST(Prefiltered, IsExactWhereAPatchCoversTheFootprint) {
+  auto a = dpt_scene(256, 0.5f);
+  for (size_t i = 0; i < 16; ++i) a.weights.data[16 + i] = float(i % 3) / 2.f;
+  const PackedScene direct = pack(a), pre = pack(a, prefiltered_options());
+  for (int64_t y = 0; y < 6; ++y)
+    for (int64_t x = 0; x < 6; ++x)  // mip 2: 4 texels against patches of 256 (fade 1)
+      EXPECT_EQ(compose_texel_reference(direct, 2, x * 7, y * 5), compose_texel_reference(pre, 2, x * 7, y * 5));
+}
+
+// p at and near its ends, P and R over six decades, W at both ends, patches below a texel:
+// every texel is finite and in [0, 1], and the layer's share grows with p.
+TEST(Prefiltered, ExtremesAreDefinedAndMonotoneInP) {
+  for (const double patch : {0.004, 1.0, 64.0})
+    for (const double pexp : {1e-3, 1.0, 1e3})
+      for (const double rexp : {1e-3, 1.0, 1e3})
+        for (const double wexp : {1e-3, 1e3}) {
+          double last = -1.0;
+          for (const float w : {0.f, 0x1p-24f, 0.25f, 0.5f, 1.f}) {
+            const PackedScene pre = pack(dpt_scene(patch, w, pexp, rexp, wexp), prefiltered_options());
+            const glm::dvec4 t = compose_texel_reference(pre, 4, 3, 5);
+            for (int c = 0; c < 4; ++c) ASSERT_TRUE(std::isfinite(t[c]) && t[c] >= 0.0 && t[c] <= 1.0);
+            EXPECT_GE(t.g, last - 1e-12) << "patch " << patch << " P " << pexp << " R " << rexp << " W " << wexp << " p " << w;
+            last = t.g;
+          }
+        }
 }
 
 TEST(Mips, GroundTruthIsSupersamplingAtTheLevel0Rate) {

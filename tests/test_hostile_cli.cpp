@@ -192,7 +192,7 @@ TEST_F(HostileCli, BadBakeValuesAreRefusedUnderTheirFlagWithTheValidRange) {
       {" --region 0,0,1,9223372036854775807", "--region: x,y,width,height must lie inside"},
       {" --scene " + fifo, "--scene: " + fifo + ": is a FIFO, not a regular file"},
       {" --scene " + path("dict-folder"), "is a directory, not a regular file"},
-      {" --mip-strategy supersample:3", "--mip-strategy: mip strategy: must be direct or supersample:S"},
+      {" --mip-strategy supersample:3", "--mip-strategy: mip strategy: must be direct, prefiltered or supersample:S"},
       {" --mip-strategy supersample:4", "--mip-strategy: only used with --pyramid composed"},
   };
   for (const auto& [args, message] : cases) {
@@ -222,8 +222,8 @@ TEST_F(HostileCli, NanInfiniteAndUnwritableValuesAreRefusedUnderTheirFlagBeforeA
       {"bench-loader --synthetic --seconds nan", "--seconds"},
       {"bench-loader --synthetic --json " + path("no/such/b.json"), "--json: folder does not exist"},
       {"bench frame --json " + path("r"), "--json: " + path("r") + " is a directory"},
-      {"render --mip-strategy supersample:128 --out " + path("r"), "--mip-strategy: mip strategy: must be direct or supersample:S"},
-      {"render --mip-strategy prefiltered --out " + path("r"), "got 'prefiltered'"},
+      {"render --mip-strategy supersample:128 --out " + path("r"), "--mip-strategy: mip strategy: must be direct, prefiltered or supersample:S"},
+      {"render --mip-strategy prefiltered:2 --out " + path("r"), "got 'prefiltered:2'"},
       {"compare --mip-strategy nan --out " + path("r"), "--mip-strategy"},
   };
   for (const auto& [args, message] : cases) {

@@ -90,14 +90,16 @@ CLI::Validator finite_range(double lo, double hi) {
 
 void add_mip_strategy_option(CLI::App& app, std::string& text) {
   app.add_option("--mip-strategy", text,
-                 "How pages of mip >= 1 are composed: direct (one sample per texel) or supersample:S (up to SxS "
-                 "samples per texel, S = 2..64, a power of two; never more than the level-0 texels covered)")
+                 "How pages of mip >= 1 are composed: direct (one sample per texel), prefiltered (one sample per "
+                 "texel with the expected coverage of patches, features and blend-map heights smaller than it) or "
+                 "supersample:S (up to SxS samples per texel, S = 2..64, a power of two; never more than the "
+                 "level-0 texels covered)")
       ->check(CLI::Validator(
           [](std::string& value) -> std::string {
             auto s = mip_strategy_from_string(value);
             return s ? std::string() : s.error().message;
           },
-          "direct|supersample:S"))
+          "direct|prefiltered|supersample:S"))
       ->capture_default_str();
 }
 

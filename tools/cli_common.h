@@ -51,7 +51,7 @@ Status write_text_file(const std::string& path, const std::string& text);
 // also passes FIFOs, devices and sockets, on which a reader blocks or never ends).
 CLI::Validator finite_range(double lo, double hi);
 CLI::Validator regular_file();
-// --mip-strategy (render, bake, compare, compose): direct | supersample:S (compose/packed_scene.h).
+// --mip-strategy (render, bake, compare, compose): direct | prefiltered | supersample:S (compose/packed_scene.h).
 void add_mip_strategy_option(CLI::App& app, std::string& text);
 // The strategy of a value add_mip_strategy_option() accepted.
 MipStrategy parsed_mip_strategy(const std::string& text);

@@ -25,7 +25,7 @@ struct BakeArgs {
   std::string scene;
   std::string out;
   std::string method = "fbpb+dpt2";
-  std::string mip_strategy = "direct";
+  std::string mip_strategy;  // empty: prefiltered for a composed pyramid (a filtered one composes level 0 only)
   std::string hex = "scene";
   std::string gpu_name;
   std::string shard = "0/1";
@@ -93,7 +93,7 @@ int run_bake(const BakeArgs& a) {
     return fail(cmd, "--pyramid: must be filtered or composed, got '" + a.pyramid + "'", 2);
   const StorePyramid pyramid = a.pyramid == "filtered" ? StorePyramid::filtered : StorePyramid::composed;
   if (!a.finer.empty() && pyramid != StorePyramid::filtered) return fail(cmd, "--finer: only used with --pyramid filtered", 2);
-  if (pyramid == StorePyramid::filtered && parsed_mip_strategy(a.mip_strategy).supersample > 1)
+  if (pyramid == StorePyramid::filtered && !a.mip_strategy.empty() && !parsed_mip_strategy(a.mip_strategy).direct())
     return fail(cmd, "--mip-strategy: only used with --pyramid composed (a filtered pyramid composes level 0 alone, "
                      "where every strategy is direct)", 2);
   for (const std::string& f : a.finer)
@@ -140,7 +140,9 @@ int run_bake(const BakeArgs& a) {
   if (!plan) return fail(cmd, "--region/--mips: " + plan.error().message, 2);
   const ShardRange part = shard_range(plan->size(), shard_index, shard_count);
 
-  auto producers = PageProducers::create(assets.value(), *method, parsed_mip_strategy(a.mip_strategy), a.cpu, a.gpu_name);
+  const std::string strategy_name =
+      !a.mip_strategy.empty() ? a.mip_strategy : pyramid == StorePyramid::filtered ? "direct" : "prefiltered";
+  auto producers = PageProducers::create(assets.value(), *method, parsed_mip_strategy(strategy_name), a.cpu, a.gpu_name);
   if (!producers) return fail(cmd, producers.error().message, 1);
   StoreDesc desc = producers.value()->store_desc(a.level);
   desc.pyramid = pyramid;
@@ -168,7 +170,7 @@ int run_bake(const BakeArgs& a) {
   }
 
   std::printf("terravt bake: %s, V = 2^%u, %s, mip strategy %s, %s pyramid, %zu pages in the plan, shard %u/%u = %llu pages, zstd %d%s, %s\n",
-              assets->desc.source_path.c_str(), vt.log2_size, a.method.c_str(), a.mip_strategy.c_str(), a.pyramid.c_str(), plan->size(), shard_index, shard_count,
+              assets->desc.source_path.c_str(), vt.log2_size, a.method.c_str(), strategy_name.c_str(), a.pyramid.c_str(), plan->size(), shard_index, shard_count,
               (unsigned long long)part.count, a.level, desc.dictionary.empty() ? "" : " + dictionary",
               producers.value()->device_name().c_str());
 

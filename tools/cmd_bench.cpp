@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <bit>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -251,6 +252,7 @@ struct BenchMipsArgs {
   std::string svg_out;
   uint32_t pages = 2;
   int repeats = 2;
+  uint32_t max_supersample = 64;  // the largest supersample:S measured
 };
 
 // PSNR in dB of the RGB channels of two equally sized RGBA8 buffers (99 dB when identical).
@@ -312,7 +314,7 @@ int run_bench_mips(const BenchMipsArgs& a) {
     GpuComposer& c = *composer.value();
     const std::string method_name(to_string(method));
     PlotPanel panel{method_name, {}};
-    std::map<uint32_t, PlotSeries> curves;  // supersample s -> its points over the mips
+    std::map<int, PlotSeries> curves;  // strategy (in table order) -> its points over the mips
 
     std::printf("terravt bench mips: method %s, %u pages per mip, device %s\n\n", method_name.c_str(), a.pages,
                 ctx.value()->device_name().c_str());
@@ -321,14 +323,16 @@ int run_bench_mips(const BenchMipsArgs& a) {
       const int side = int(std::ceil(std::sqrt(double(a.pages)))) * int(vt.page_texels);
       std::vector<PageId> pages = pages_covering(vt, interesting_region(assets.value(), m, side, side));
       pages.resize(std::min<size_t>(pages.size(), a.pages));
-      std::vector<uint32_t> strategies = {1};
-      for (uint32_t s = 2; s <= (1u << m); s *= 2) strategies.push_back(s);  // 2^m: every level-0 texel centre
+      std::vector<MipStrategy> strategies = {MipStrategy{}, MipStrategy{1, true}};
+      for (uint32_t s = 2; s <= (1u << m) && s <= a.max_supersample; s *= 2)  // 2^m: every level-0 texel centre
+        strategies.push_back(MipStrategy{s});
       std::vector<std::vector<std::vector<uint8_t>>> results;
       std::vector<double> best(strategies.size(), 1e300);
       for (int round = 0; round <= a.repeats; ++round)
         for (size_t i = 0; i < strategies.size(); ++i) {
           gpu::TvtComposeParams params = packed->params;
-          params.supersample = int(strategies[i]);
+          params.supersample = int(strategies[i].supersample);
+          params.prefiltered = strategies[i].prefiltered ? 1 : 0;
           c.set_params(params);
           if (round == 0) {
             auto composed = c.compose_pages(pages);  // also the warm-up; the scene is loaded
@@ -343,6 +347,7 @@ int run_bench_mips(const BenchMipsArgs& a) {
       // The truth: level-0 pages composed directly (32 at a time), box-filtered up to mip m.
       gpu::TvtComposeParams level0 = packed->params;
       level0.supersample = 1;
+      level0.prefiltered = 0;
       StoreDesc desc;
       desc.vt = vt;
       FilteredPyramid pyramid(desc, [&](std::span<const PageId> ids, std::vector<std::vector<uint8_t>>& out) -> Status {
@@ -365,11 +370,12 @@ int run_bench_mips(const BenchMipsArgs& a) {
         double psnr = 0;
         for (size_t p = 0; p < pages.size(); ++p) psnr += psnr_rgb(page_payload(vt, results[i][p]), truth[p]);
         psnr /= double(pages.size());
-        const std::string name = to_string(MipStrategy{strategies[i]});
+        const std::string name = to_string(strategies[i]);
         const double ms = 1000.0 * best[i] / double(pages.size()), cost = best[i] / best[0];
         std::printf("%4u %-16s %12.2f %10.2f %11.1fx\n", m, name.c_str(), ms, psnr, cost);
         j["methods"][method_name][std::to_string(m)][name] = {{"ms_per_page", ms}, {"psnr_db", psnr}, {"cost_vs_direct", cost}};
-        PlotSeries& curve = curves[strategies[i]];
+        const MipStrategy& st = strategies[i];
+        PlotSeries& curve = curves[st.prefiltered ? 1 : st.supersample <= 1 ? 0 : 1 + std::countr_zero(st.supersample)];
         curve.name = name;
         curve.points.push_back(PlotPoint{cost, psnr, "m" + std::to_string(m)});
       }
@@ -415,7 +421,7 @@ const CommandRegistrar k_register{
       c->add_option("--json", a->json_out, "Also write the figures as JSON")->check(output_file());
       c->add_flag("--skip-cpu", a->skip_cpu, "Do not time the CPU reference");
       auto m = std::make_shared<BenchMipsArgs>();
-      CLI::App* mc = app.add_subcommand("mips", "Direct vs supersampled mip composition against the ground truth: the box-filter pyramid of level-0 pages");
+      CLI::App* mc = app.add_subcommand("mips", "Direct, prefiltered and supersampled mip composition against the ground truth: the box-filter pyramid of level-0 pages");
       mc->add_option("--scene", m->scene, "Scene JSON file (default: the built-in scene)")->check(regular_file());
       mc->add_option("--method", m->methods, "Transition methods, comma-separated (one panel each in the SVG)")
           ->delimiter(',')
@@ -425,6 +431,9 @@ const CommandRegistrar k_register{
       mc->add_option("--mips", m->mips, "Mip levels (1..6)")->delimiter(',');
       mc->add_option("--pages", m->pages, "Pages per mip")->capture_default_str();
       mc->add_option("--repeats", m->repeats, "Interleaved timing rounds")->capture_default_str();
+      mc->add_option("--max-supersample", m->max_supersample, "Largest supersample:S measured (a power of two, 2..64)")
+          ->check(CLI::Range(2u, 64u))
+          ->capture_default_str();
       mc->add_option("--gpu", m->gpu_name, "Vulkan device name substring or index");
       auto fr = std::make_shared<BenchFrameArgs>();
       CLI::App* fc = app.add_subcommand(

@@ -35,7 +35,7 @@ namespace {
 struct CompareArgs {
   std::string scene;
   std::string method = "fbpb+dpt2";
-  std::string mip_strategy = "direct";
+  std::string mip_strategy = "prefiltered";
   std::string hex = "scene";
   std::string out = "out/compare";
   std::string camera;  // camera path file (default: the built-in flythrough)

@@ -28,7 +28,7 @@ struct ComposeArgs {
   std::vector<int64_t> region;  // x, y, w, h at the chosen mip
   int size = 512;
   uint32_t mip = 0;
-  std::string mip_strategy = "direct";
+  std::string mip_strategy = "prefiltered";
   std::string hex = "scene";
   int columns = 3;
 };

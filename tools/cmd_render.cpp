@@ -32,7 +32,7 @@ struct RenderArgs {
   std::string save_camera;  // write the camera path in use here and stop
   std::string out = "out/render";
   std::string method = "fbpb+dpt2";
-  std::string mip_strategy = "direct";
+  std::string mip_strategy = "prefiltered";
   std::string hex = "scene";
   std::string gpu_name;
   std::string format = "png";

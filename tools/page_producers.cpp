@@ -49,7 +49,7 @@ StoreDesc PageProducers::store_desc(int level) const {
   // The device is part of the producer: fp32 results may differ between GPUs, so parts baked on
   // different devices must not be merged into one store.
   d.producer = (cpu_ ? std::string("cpu") : std::string("gpu")) + " " + std::string(to_string(method_)) + " " +
-               (strategy_.supersample > 1 ? to_string(strategy_) + " " : std::string()) + device_name_;
+               (!strategy_.direct() ? to_string(strategy_) + " " : std::string()) + device_name_;
   if (d.producer.size() > 63) d.producer.resize(63);
   d.zstd_level = level;
   return d;

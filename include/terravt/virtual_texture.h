@@ -74,11 +74,14 @@ struct VirtualTextureDesc {
   // The scene and how it is composed: compose component only.
   std::string scene_file;            // JSON scene (docs/scene-format.md); empty: the built-in scene
   std::string method = "fbpb+dpt2";  // transition method: linear, blendmap, fbpb, dpt1, dpt2, fbpb+dpt2
-  // How composed pages of mip >= 1 are made: "direct" (one sample per texel) or "supersample:S"
-  // (up to S x S samples per texel, S a power of two 2 ... 64, never more than the level-0
-  // texels a texel covers; mip 0 is the same either way). Dearer and closer to the box-filtered
-  // level-0 composition at coarse mips.
-  std::string mip_strategy = "direct";
+  // How composed pages of mip >= 1 are made: "direct" (one sample per texel), "prefiltered" (one
+  // sample per texel, with the expected coverage of the DPT patches, FBPB features and blend-map
+  // heights smaller than the texel) or "supersample:S" (up to S x S samples per texel, S a power
+  // of two 2 ... 64, never more than the level-0 texels a texel covers); mip 0 is the same under
+  // each. prefiltered (the default) costs about what direct costs and is closer to the
+  // box-filtered level-0 composition at coarse mips; supersample:S is closer still at mips up to
+  // about log2(S) + 1, at S^2 times the cost.
+  std::string mip_strategy = "prefiltered";
   PageSource source = PageSource::composed;
   std::string store_file;            // the baked store, for stored and hybrid
   // Set: this producer makes every page instead of `source` (terravt/page_producer.h). Shared:

@@ -18,9 +18,18 @@ TVT_CONST int TVT_MODE_FBPB = 2;      // Feature-Based Probabilistic Blending
 TVT_CONST int TVT_MODE_DPT = 3;       // Dynamic Patch Transitions
 TVT_CONST int TVT_MODE_FBPB_DPT = 4;  // FBPB features over a DPT-shaped non-feature blend
 
+// Each material's texel words end with its statistics block, after the 1x1 mip: float bits,
+// four words per level l < 15 (the mean over level-l texels of the variance of A within the
+// level-0 texels under the texel, and of the covariances of A with R, G and B), then the
+// FBPB words (docs/composition.md, "Prefiltered mips").
+TVT_CONST int TVT_MATERIAL_STATS_WORDS = 68;
+TVT_CONST int TVT_STATS_FEATURE_FRACTION = 60;  // mean of the meta-texture's d (0 without one)
+TVT_CONST int TVT_STATS_FEATURE_SOFT = 61;      // mean of f over feature texels
+TVT_CONST int TVT_STATS_FEATURE_COLOUR = 64;    // RGBA: feature texels' mean minus all texels' mean
+
 TVT_CONST int TVT_COMPOSE_GROUP = 16;  // compute workgroup edge (texels); lavapipe pays ~16 us per group
 
-struct TvtDptLayer {      // 32 bytes
+struct TvtDptLayer {      // 48 bytes
   int64_t patch_fp;       // patch edge S_k, level-0 texels * 256
   float exp_p;            // P_k (eq 4.1)
   float exp_r;            // R_k (eq 4.2)
@@ -28,9 +37,14 @@ struct TvtDptLayer {      // 32 bytes
   float height_h;         // H_k (Algorithm 3)
   uint salt;              // hash salt of (scene seed, material, layer)
   float patch_texels;     // S_k as float, for the minification fade only
+  // Prefiltered strategy: E[bilerp(m)^W] over a patch cell whose four corner masks are
+  // independent with P(m = 1) = q is q^4 + sum_i expect[i] q^(i+1) (1 - q)^(3-i), i = 0, 1, 2
+  // (docs/composition.md, "Prefiltered mips").
+  float expect[3];
+  float pad0;
 };
 
-struct TvtMaterial {      // 256 bytes
+struct TvtMaterial {      // 320 bytes
   int64_t period_fp;      // tiling period T_n: level-0 texels per repeat * 256
   uint texel_offset;      // first texel of mip 0 in the material texel buffer (RGBA8 words)
   uint meta_offset;       // first texel in the meta buffer (uvec2 each), or TVT_NO_META
@@ -76,6 +90,12 @@ struct TvtComposeParams {
   int supersample;        // s: s*s sub-samples per texel (1 = direct)
   float linear_boost;     // Bloom: normalised weights sum to this, then clamped (>= 1)
   int pattern;            // TVT_COMPOSE_PATTERN_* (compose_coord.h): 0 = the composition
+  int prefiltered;        // 1: mips >= 1 compose with expected coverages (docs/composition.md)
+  // Prefiltered: a DPT layer is exact (its point value) where its patches span at least
+  // prefilter_patch_hi texels of the footprint, its expectation below prefilter_patch_lo.
+  float prefilter_patch_lo;
+  float prefilter_patch_hi;
+  int pad0;
   TvtMaterial materials[TVT_MAX_MATERIALS];
 };
 
@@ -91,11 +111,11 @@ struct TvtPageJob {       // one page to compose into one cache slot
 TVT_END
 
 #ifdef __cplusplus
-static_assert(sizeof(tvt::gpu::TvtDptLayer) == 32);
-static_assert(sizeof(tvt::gpu::TvtMaterial) == 256);
+static_assert(sizeof(tvt::gpu::TvtDptLayer) == 48);
+static_assert(sizeof(tvt::gpu::TvtMaterial) == 320);
 static_assert(offsetof(tvt::gpu::TvtMaterial, dpt) == 128);
-static_assert(sizeof(tvt::gpu::TvtComposeParams) == 48 + 16 * 256);
-static_assert(offsetof(tvt::gpu::TvtComposeParams, materials) == 48);
+static_assert(sizeof(tvt::gpu::TvtComposeParams) == 64 + 16 * 320);
+static_assert(offsetof(tvt::gpu::TvtComposeParams, materials) == 64);
 static_assert(sizeof(tvt::gpu::TvtPageJob) == 32);
 #endif
 #endif
