@@ -16,6 +16,12 @@
 
 namespace tvt {
 
+// The material LOD at which FBPB features have faded out of direct composition (the end of
+// fade_lod; prefiltered mips keep them one LOD longer): the composers and the culler agree.
+inline double fbpb_fade_end(const gpu::TvtMaterial& m) {
+  return m.fbpb_fade_hi > m.fbpb_fade_lo ? double(m.fbpb_fade_hi) : double(m.fbpb_fade_lo);
+}
+
 // What composing a page reads of each material (composer/material_uploader.h uploads just this).
 struct MaterialNeeds {
   uint32_t mask = 0;       // bit n: material n and its weight layer (the culling mask)

@@ -70,11 +70,6 @@ double patch_expectation(const gpu::TvtDptLayer& L, double q) {
          double(L.expect[2]) * q * q * q * r;
 }
 
-// The material LOD at which the direct FBPB fade reaches 0.
-double fbpb_fade_end(const gpu::TvtMaterial& m) {
-  return m.fbpb_fade_hi > m.fbpb_fade_lo ? double(m.fbpb_fade_hi) : double(m.fbpb_fade_lo);
-}
-
 // Linear fade: 0 at or below lo, 1 at or above hi (a step at lo when hi <= lo).
 double ramp(double v, double lo, double hi) {
   if (hi <= lo) return v >= lo ? 1.0 : 0.0;
@@ -381,15 +376,15 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
         // the level-0 fallback as level 0 mixes them.
         const double nf = mode == gpu::TVT_MODE_FBPB_DPT ? non_feature : plain;
         const double d_frac = c.stat(m, gpu::TVT_STATS_FEATURE_FRACTION), soft = c.stat(m, gpu::TVT_STATS_FEATURE_SOFT);
-        const double expected = d_frac * std::min(plain * double(m.cf), 1.0) * std::min(double(m.cm) * std::max(plain, soft), 1.0) +
-                                (1.0 - d_frac) * std::min(nf * double(m.cn), 1.0);
+        // w of a feature texel (visible with probability min(p Cf, 1)) and of a non-feature one.
+        const double w_feature = std::min(plain * double(m.cf), 1.0) * std::min(double(m.cm) * std::max(plain, soft), 1.0);
+        const double w_ground = std::min(nf * double(m.cn), 1.0);
+        const double expected = d_frac * w_feature + (1.0 - d_frac) * w_ground;
         const double fade0 = 1.0 - ramp(c.material_lod(m, 1.0), m.fbpb_fade_lo, m.fbpb_fade_hi);
         fallback = fade0 * expected + (1.0 - fade0) * fallback;
         // E[b colour] - E[b] mean: feature texels (their own mean colour) take w_F, the others
         // w_N, so the shift is D (w_F - w_N) times the features' colour offset.
-        feature_shift = (1.0 - fade) * fade0 * d_frac *
-                        (std::min(plain * double(m.cf), 1.0) * std::min(double(m.cm) * std::max(plain, soft), 1.0) -
-                         std::min(nf * double(m.cn), 1.0));
+        feature_shift = (1.0 - fade) * fade0 * d_frac * (w_feature - w_ground);
       }
       double w = 0.0;
       if (fade > 0.0) {

@@ -344,13 +344,12 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
       if (prefiltered) {
         const float nf = mode == TVT_MODE_FBPB_DPT ? non_feature : plain;
         const float d_frac = material_stat(n, TVT_STATS_FEATURE_FRACTION), soft = material_stat(n, TVT_STATS_FEATURE_SOFT);
-        const float expected = d_frac * min(plain * P.materials[n].cf, 1.0) * min(P.materials[n].cm * max(plain, soft), 1.0) +
-                               (1.0 - d_frac) * min(nf * P.materials[n].cn, 1.0);
+        const float w_feature = min(plain * P.materials[n].cf, 1.0) * min(P.materials[n].cm * max(plain, soft), 1.0);
+        const float w_ground = min(nf * P.materials[n].cn, 1.0);
+        const float expected = d_frac * w_feature + (1.0 - d_frac) * w_ground;
         const float fade0 = 1.0 - ramp(material_lod(n, 1.0), P.materials[n].fbpb_fade_lo, P.materials[n].fbpb_fade_hi);
         fallback = fade0 * expected + (1.0 - fade0) * fallback;
-        feature_shift = (1.0 - fade) * fade0 * d_frac *
-                        (min(plain * P.materials[n].cf, 1.0) * min(P.materials[n].cm * max(plain, soft), 1.0) -
-                         min(nf * P.materials[n].cn, 1.0));
+        feature_shift = (1.0 - fade) * fade0 * d_frac * (w_feature - w_ground);
       }
       float w = 0.0;
       if (fade > 0.0) {

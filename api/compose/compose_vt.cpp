@@ -24,13 +24,7 @@ namespace {
 
 Error invalid(std::string message) { return Error{ErrorKind::invalid_argument, std::move(message)}; }
 
-// A failed Vulkan call keeps its kind, and so does running out of memory where `keep_memory`
-// (create(): nothing is made); anything else gets `otherwise`.
-Error as_error(const Error& e, ErrorKind otherwise, bool keep_memory = true) {
-  if (e.vk_result != 0 || e.kind == ErrorKind::vulkan || e.kind == ErrorKind::device_lost) return e;
-  if (keep_memory && e.kind == ErrorKind::out_of_memory) return e;
-  return Error{otherwise, e.message};
-}
+using detail::as_error;
 
 PageTask task_of(const tvt::PageRequest& r) { return PageTask{r.page.mip, r.page.x, r.page.y, r.slot}; }
 

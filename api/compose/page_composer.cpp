@@ -54,13 +54,7 @@ Status PageComposer::compose(std::span<const PageRequest> pages, std::vector<std
     ids.push_back(id);
   }
   auto composed = m.composer->compose_pages(ids);  // in batches of the composer's slots
-  if (!composed) {
-    const Error& e = composed.error();
-    if (e.vk_result != 0 || e.kind == ErrorKind::vulkan || e.kind == ErrorKind::device_lost ||
-        e.kind == ErrorKind::out_of_memory)
-      return e;
-    return Error{ErrorKind::producer_failed, e.message};
-  }
+  if (!composed) return detail::as_error(composed.error(), ErrorKind::producer_failed);
   out = std::move(composed.value());
   return Ok{};
 }

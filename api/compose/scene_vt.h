@@ -31,4 +31,13 @@ Result<std::shared_ptr<const tvt::PageStoreReader>> open_scene_store(const std::
                                                                      const tvt::SceneAssets& assets, tvt::Method method,
                                                                      tvt::MipStrategy strategy);
 
+// An internal error as the compose component returns it: a failed Vulkan call keeps its kind,
+// and so does running out of memory where `keep_memory` (nothing is made, or nothing half
+// done); anything else gets `otherwise`.
+inline Error as_error(const Error& e, ErrorKind otherwise, bool keep_memory = true) {
+  if (e.vk_result != 0 || e.kind == ErrorKind::vulkan || e.kind == ErrorKind::device_lost) return e;
+  if (keep_memory && e.kind == ErrorKind::out_of_memory) return e;
+  return Error{otherwise, e.message};
+}
+
 }  // namespace terravt::detail
