@@ -16,8 +16,10 @@ tvt_install_prefix "$build"
 # #include is a standard header, Vulkan, or terravt/.
 headers=$(cd "$prefix/include" && find . -type f | sort)
 echo "installed headers:" $headers
-if find "$prefix/include" -type f ! -path "$prefix/include/terravt/*.h" ! -path "$prefix/include/terravt/vt.glsl" \
-     ! -path "$prefix/include/terravt/glsl/*" | grep -q .; then
+# (No `| grep -q` under pipefail: grep quitting early kills the writer with SIGPIPE and the
+# pipeline fails at random; here-strings and command substitutions instead.)
+if [ -n "$(find "$prefix/include" -type f ! -path "$prefix/include/terravt/*.h" ! -path "$prefix/include/terravt/vt.glsl" \
+     ! -path "$prefix/include/terravt/glsl/*")" ]; then
   echo "FAIL: something other than terravt's headers was installed"; exit 1
 fi
 bad=$(cat "$prefix"/include/terravt/*.h | grep -E '^[[:space:]]*#[[:space:]]*include' |
@@ -49,13 +51,13 @@ glslangValidator -V --target-env vulkan1.3 -I"$prefix/include" "$work/client.fra
 # The bindings are the client's: bindings 5, 6, 7 in the SPIR-V (glslang's reflection lists
 # them; spirv-dis is not needed).
 refl=$(glslangValidator -V --target-env vulkan1.3 -q -I"$prefix/include" "$work/client.frag" -o /dev/null)
-for b in 5 6 7; do echo "$refl" | grep -q "binding $b," || { echo "FAIL: binding $b not in the shader:"; echo "$refl"; exit 1; }; done
+for b in 5 6 7; do grep -q "binding $b," <<<"$refl" || { echo "FAIL: binding $b not in the shader:"; echo "$refl"; exit 1; }; done
 # Without the binding macros the include says what to define.
 sed '/TERRAVT_VT_BINDING/d' "$work/client.frag" > "$work/nomacros.frag"
 if out=$(glslangValidator -V -I"$prefix/include" "$work/nomacros.frag" -o /dev/null 2>&1); then
   echo "FAIL: vt.glsl compiled without its binding macros"; exit 1
 fi
-echo "$out" | grep -q "define TERRAVT_VT_BINDING_INFO" || { echo "FAIL: no clear error: $out"; exit 1; }
+grep -q "define TERRAVT_VT_BINDING_INFO" <<<"$out" || { echo "FAIL: no clear error: $out"; exit 1; }
 
 check_shared_lib() {  # check_shared_lib NAME: the installed libNAME.so.X.Y.Z; sets $lib
   lib=$(find "$prefix" -name "lib$1.so.*.*.*" | head -n 1)
