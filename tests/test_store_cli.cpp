@@ -1,5 +1,6 @@
 // `terravt bake / merge / verify / info` end to end through the executable, composing with the
 // CPU reference (`bake --cpu`) on a 2^10 version of the built-in scene (85 pages).
+#include <algorithm>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -148,6 +149,18 @@ TEST_F(StoreCli, CompareReportsTheErrorPerMipAgainstTheFilteredPyramid) {
   std::ifstream stored_json(path("stored/compare.json"));
   const auto stored = nlohmann::json::parse(stored_json);
   EXPECT_EQ(stored["store"]["pyramid"], "filtered");
+  // PSNR per compared frame and its median (the flythrough figure against the filtered pyramid).
+  EXPECT_NE(output_.find("frame PSNR dB (every 1 frames; identical = 99): median "), std::string::npos) << output_;
+  const auto& per_frame = stored["images"]["psnr_db_per_frame"];
+  ASSERT_EQ(per_frame.size(), stored["images"]["frames_compared"].get<size_t>());
+  std::vector<double> sorted = per_frame.get<std::vector<double>>();
+  std::sort(sorted.begin(), sorted.end());
+  EXPECT_LT(sorted.front(), 99.0) << "at least one frame differs from the filtered pyramid";
+  EXPECT_DOUBLE_EQ(stored["images"]["worst_psnr_db"].get<double>(), sorted.front());
+  const double median = sorted.size() % 2 ? sorted[sorted.size() / 2]
+                                          : 0.5 * (sorted[sorted.size() / 2 - 1] + sorted[sorted.size() / 2]);
+  EXPECT_DOUBLE_EQ(stored["images"]["median_psnr_db"].get<double>(), median);
+  EXPECT_EQ(own["images"]["median_psnr_db"], 99.0) << "the own bake's frames are identical";
   ASSERT_TRUE(stored.contains("error_vs_filtered")) << stored.dump(2);
   for (const auto& [mip, e] : stored["error_vs_filtered"].items()) {
     EXPECT_EQ(e["truth"], "store") << mip;

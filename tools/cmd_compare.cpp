@@ -131,7 +131,8 @@ struct RunResult {
 double median(std::vector<double> v) {
   if (v.empty()) return 0;
   std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
+  const size_t h = v.size() / 2;
+  return v.size() % 2 ? v[h] : 0.5 * (v[h - 1] + v[h]);
 }
 
 Result<RunResult> run(vk::Context& g, const SceneAssets& assets, const FlythroughOptions& fo, const CompareArgs& a,
@@ -352,11 +353,14 @@ int run_compare(const CompareArgs& a) {
   const bool filtered_store = store->desc().pyramid == StorePyramid::filtered;
   double worst_psnr = std::numeric_limits<double>::infinity();
   uint32_t worst_abs = 0;
+  std::vector<double> frame_psnr;  // per compared frame; identical frames count as 99 dB
   for (size_t i = 0; i < proc->images.size() && i < exact->images.size(); ++i) {
     const ImageDiff d = compare_images(proc->images[i], exact->images[i]);
     worst_psnr = std::min(worst_psnr, d.psnr_db);
     worst_abs = std::max(worst_abs, d.max_abs);
+    frame_psnr.push_back(std::isinf(d.psnr_db) ? 99.0 : d.psnr_db);
   }
+  const double median_psnr = frame_psnr.empty() ? 99.0 : median(frame_psnr);
 
   // 6. Disk: the store, the procedural inputs (files the scene names + the scene itself) and,
   // since built-in materials are generated, the packed inputs as files would hold them.
@@ -405,6 +409,8 @@ int run_compare(const CompareArgs& a) {
   j["images"] = {{"frames_compared", std::min(proc->images.size(), exact->images.size())},
                  {"identical", worst_abs == 0},
                  {"worst_psnr_db", std::isinf(worst_psnr) ? 99.0 : worst_psnr},
+                 {"median_psnr_db", median_psnr},
+                 {"psnr_db_per_frame", frame_psnr},
                  {"max_abs_diff", worst_abs}};
   for (const auto& [m, e] : mip_error.value())
     j["error_vs_filtered"][std::to_string(m)] = {{"pages", e.pages}, {"psnr_db", e.psnr_db()}, {"max_abs_diff", e.max_abs},
@@ -447,6 +453,11 @@ int run_compare(const CompareArgs& a) {
   std::printf("images: %s (worst PSNR %s, max difference %u/255 over %zu frames)\n",
               worst_abs == 0 ? "IDENTICAL" : filtered_store ? "DIFFER (expected: the store holds the filtered pyramid)" : "DIFFER", std::isinf(worst_psnr) ? "inf" : std::to_string(worst_psnr).c_str(),
               worst_abs, std::min(proc->images.size(), exact->images.size()));
+  if (worst_abs != 0) {
+    std::printf("frame PSNR dB (every %u frames; identical = 99): median %.2f;", a.every, median_psnr);
+    for (double p : frame_psnr) std::printf(" %.2f", p);
+    std::printf("\n");
+  }
   std::printf("disk: store %.2f MB for %zu pages; procedural inputs %.1f KB of files (%.1f MB as packed texels)\n",
               double(store->file_bytes()) / 1e6, store->entries().size(), double(input_files) / 1e3, double(input_packed) / 1e6);
   std::printf("\nprocedural pages vs the filtered pyramid (payload RGB; truth from %s):\n%4s %6s %10s %8s %14s\n",
