@@ -225,6 +225,7 @@ TEST_F(HostileCli, NanInfiniteAndUnwritableValuesAreRefusedUnderTheirFlagBeforeA
       {"render --mip-strategy supersample:128 --out " + path("r"), "--mip-strategy: mip strategy: must be direct, prefiltered or supersample:S"},
       {"render --mip-strategy prefiltered:2 --out " + path("r"), "got 'prefiltered:2'"},
       {"compare --mip-strategy nan --out " + path("r"), "--mip-strategy"},
+      {"bench frame --mip-strategy supersample:3", "--mip-strategy"},
   };
   for (const auto& [args, message] : cases) {
     EXPECT_EQ(run(args), 2) << args << ": " << output_;

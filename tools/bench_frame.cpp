@@ -221,6 +221,7 @@ Result<LoopResult> measure_loop(vk::Context& g, const SceneAssets& assets, Metho
   fo.feedback_mode = mode;
   fo.vt.cache_slots = a.cache_slots;
   fo.vt.page_budget = a.page_budget;
+  fo.mip_strategy = parsed_mip_strategy(a.mip_strategy);
   // Frame cost: on a CPU device the process CPU time from one frame's callback to the next (the
   // whole frame: residency, composition, passes, compaction; with frames in flight the GPU work
   // of a frame may fall into the next interval, which the median over steady frames absorbs);
@@ -328,6 +329,7 @@ int run_bench_frame(const BenchFrameArgs& a) {
   j["width"] = a.width;
   j["height"] = a.height;
   j["feedback_divisor"] = a.feedback_divisor;
+  j["mip_strategy"] = a.mip_strategy;
   j["plain_texels"] = 1u << a.plain_log2;
   const bool cpu_device = g.properties().deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU;
   j["static_clock"] = cpu_device ? "process_cpu" : "gpu_timestamps";
@@ -386,9 +388,9 @@ int run_bench_frame(const BenchFrameArgs& a) {
   }
 
   if (!a.static_only) {
-    std::printf("\nFlythrough loop, %u frames at %.0f fps, cache %u pages, budget %u (ms per frame: steady = median of the\n"
-                "frames that composed nothing, VT+production = mean of all frames):\n",
-                a.frames, a.fps, a.cache_slots, a.page_budget);
+    std::printf("\nFlythrough loop, %u frames at %.0f fps, cache %u pages, budget %u, mip strategy %s (ms per frame: steady =\n"
+                "median of the frames that composed nothing, VT+production = mean of all frames):\n",
+                a.frames, a.fps, a.cache_slots, a.page_budget, a.mip_strategy.c_str());
     std::printf("%-10s %-10s %10s %14s %10s %14s %7s %14s %14s %10s\n", "method", "feedback", "VT steady", "VT+production",
                 "VT/direct", "VT+prod/direct", "pages", "time-to-sharp", "feedback CPU", "select");
   }

@@ -25,6 +25,7 @@ struct BenchFrameArgs {
   uint32_t anisotropy = 4;    // taps of the anisotropic variant (<= page border B)
   float brilinear_band = 0.25f;  // band of the brilinear variant (VtMipFilter), in [0, 1]
   bool static_only = false;   // skip the flythrough loops (quick comparisons)
+  std::string mip_strategy = "prefiltered";  // how the flythrough composes pages of mip >= 1 (the API default)
 };
 
 int run_bench_frame(const BenchFrameArgs& args);

@@ -456,6 +456,7 @@ const CommandRegistrar k_register{
           ->capture_default_str();
       fc->add_option("--json", fr->json_out, "Also write the figures as JSON")->check(output_file());
       fc->add_flag("--static-only", fr->static_only, "Only the steady-state comparison (no flythrough loops)");
+      add_mip_strategy_option(*fc, fr->mip_strategy);
       fc->add_option("--gpu", fr->gpu_name, "Vulkan device name substring or index");
       return [a, c, m, mc, fr, fc] {
         if (fc->parsed()) return run_bench_frame(*fr);
