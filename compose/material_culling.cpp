@@ -98,9 +98,7 @@ MaterialNeeds MaterialCuller::needs(const PageId& page, uint32_t mask) const {
     out.finest_level[size_t(n)] = uint8_t(std::floor(level));
     // The FBPB branch reads the meta-texture while fade = 1 - ramp(lod, lo, hi) > 0.
     const bool fbpb = n > 0 && (m.mode == gpu::TVT_MODE_FBPB || m.mode == gpu::TVT_MODE_FBPB_DPT);
-    double fade_end = fbpb_fade_end(m);
-    // Prefiltered mips keep features exact one LOD further (compose_sample.glsl).
-    if (params_.prefiltered != 0 && page.mip > 0) fade_end += 1.0;
+    const double fade_end = params_.prefiltered != 0 && page.mip > 0 ? fbpb_prefiltered_end(m) : fbpb_fade_end(m);
     if (fbpb && m.meta_offset != gpu::TVT_NO_META && lod - k_margin < fade_end) out.meta_mask |= bit;
   }
   return out;

@@ -17,10 +17,13 @@
 namespace tvt {
 
 // The material LOD at which FBPB features have faded out of direct composition (the end of
-// fade_lod; prefiltered mips keep them one LOD longer): the composers and the culler agree.
+// fade_lod): the composers and the culler agree.
 inline double fbpb_fade_end(const gpu::TvtMaterial& m) {
   return m.fbpb_fade_hi > m.fbpb_fade_lo ? double(m.fbpb_fade_hi) : double(m.fbpb_fade_lo);
 }
+// Where a prefiltered mip has replaced the exact features by their expectation: one LOD after
+// fbpb_fade_end (compose_sample.glsl computes the same); the meta-texture is read below it.
+inline double fbpb_prefiltered_end(const gpu::TvtMaterial& m) { return fbpb_fade_end(m) + 1.0; }
 
 // What composing a page reads of each material (composer/material_uploader.h uploads just this).
 struct MaterialNeeds {

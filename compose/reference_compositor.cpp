@@ -359,7 +359,7 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
       if (mode == gpu::TVT_MODE_FBPB_DPT) c.dpt(m, x_fp, y_fp, footprint, plain, colour.a, non_feature, dpt_h, prefiltered, a_stats.x);
       // Prefiltered: features stay exact (coherent per feature) until the fade's end, then
       // give way to their expectation over one LOD, where they span about a texel.
-      const double fade = prefiltered ? 1.0 - ramp(lod, fbpb_fade_end(m), fbpb_fade_end(m) + 1.0)
+      const double fade = prefiltered ? 1.0 - ramp(lod, fbpb_fade_end(m), fbpb_prefiltered_end(m))
                                        : 1.0 - ramp(lod, m.fbpb_fade_lo, m.fbpb_fade_hi);
       double fallback = 0.0;
       if (mode == gpu::TVT_MODE_FBPB_DPT) {
