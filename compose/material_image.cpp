@@ -3,11 +3,13 @@
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imagebufalgo.h>
 
-#include <Imath/ImathMatrix.h>
-
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstring>
+#include <vector>
+
+#include "shared/hash.h"
 
 namespace tvt {
 
@@ -60,14 +62,32 @@ uint8_t luminance8(const uint8_t* rgb) {
 ImageRGBA8 resample_tileable(const ImageRGBA8& image, int resolution) {
   TVT_CHECK(image.width > 0 && image.height > 0 && resolution > 0);
   if (image.width == resolution && image.height == resolution) return image;
-  OIIO::ImageBuf src(OIIO::ImageSpec(image.width, image.height, 4, OIIO::TypeDesc::UINT8),
-                     const_cast<uint8_t*>(image.texels.data()));
+  // ImageBufAlgo::resize maps the source's full (display) window onto the destination's and
+  // lets its separable filter read the source's data window beyond it. So the source is given
+  // a data window padded periodically by more than the filter's reach (Lanczos-3: 3 texels,
+  // widened by the minification): the filter reads across the edges as on the torus, and the
+  // result tiles as the input did. Same texels as ImageBufAlgo::warp with WrapPeriodic (the
+  // earlier implementation, within 2/255), 3-4x faster: warp evaluates its 2-D filter per tap.
+  const int w = image.width, h = image.height;
+  const int pad_x = int(std::ceil(3.0 * std::max(1.0, double(w) / resolution))) + 2;
+  const int pad_y = int(std::ceil(3.0 * std::max(1.0, double(h) / resolution))) + 2;
+  OIIO::ImageSpec spec(w + 2 * pad_x, h + 2 * pad_y, 4, OIIO::TypeDesc::UINT8);
+  spec.x = -pad_x;
+  spec.y = -pad_y;
+  spec.full_x = 0;
+  spec.full_y = 0;
+  spec.full_width = w;
+  spec.full_height = h;
+  std::vector<uint8_t> padded(size_t(spec.width) * size_t(spec.height) * 4);
+  for (int y = 0; y < spec.height; ++y) {
+    const uint8_t* row = image.at(0, int(gpu::tvt_floor_mod(y - pad_y, h)));
+    uint8_t* out = &padded[size_t(y) * size_t(spec.width) * 4];
+    for (int x = 0; x < spec.width; ++x)
+      std::memcpy(out + size_t(x) * 4, row + size_t(gpu::tvt_floor_mod(x - pad_x, w)) * 4, 4);
+  }
+  OIIO::ImageBuf src(spec, padded.data());
   OIIO::ImageBuf dst(OIIO::ImageSpec(resolution, resolution, 4, OIIO::TypeDesc::FLOAT));
-  // Pure scale; warp maps destination pixel centres back through its inverse, widens the
-  // filter by the minification and reads outside the source periodically.
-  const Imath::M33f scale(float(resolution) / float(image.width), 0.f, 0.f, 0.f,
-                          float(resolution) / float(image.height), 0.f, 0.f, 0.f, 1.f);
-  const bool ok = OIIO::ImageBufAlgo::warp(dst, src, scale, "lanczos3", 0.f, false, OIIO::ImageBuf::WrapPeriodic);
+  const bool ok = OIIO::ImageBufAlgo::resize(dst, src, "lanczos3");
   TVT_CHECK(ok);  // only fails on bad arguments, which the checks above exclude
   std::vector<float> values(size_t(resolution) * size_t(resolution) * 4);
   TVT_CHECK(dst.get_pixels(OIIO::ROI(0, resolution, 0, resolution, 0, 1, 0, 4), OIIO::TypeDesc::FLOAT, values.data()));

@@ -10,9 +10,9 @@
 // Resolution rule (docs/scene-format.md): the power of two nearest to the geometric mean of the
 // sides, sqrt(w·h), in log2 terms (halfway rounds up), clamped to 16 ... 4096; an image whose
 // sides are already that power of two is taken as it is, texel for texel. Otherwise it is
-// resampled with OpenImageIO's ImageBufAlgo::warp under a pure scale, a Lanczos-3 filter and
-// periodic wrap: the filter reads across the edges, so the result tiles as the input did,
-// and minification widens the filter (no aliasing).
+// resampled with OpenImageIO's ImageBufAlgo::resize, a Lanczos-3 filter, on the image padded
+// periodically beyond its display window: the filter reads across the edges, so the result
+// tiles as the input did, and minification widens the filter (no aliasing).
 //
 // Height (A) sources: the file's alpha, a separate image (first channel), the albedo's
 // luminance (Rec. 709 weights on the stored values: "the darkest pixel is deemed to be the
