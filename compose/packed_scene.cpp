@@ -122,10 +122,10 @@ int mode_code(Mode m) {
 //   q^4 + 4 q (1-q)^3 I1 + q^2 (1-q)^2 (4 I2a + 2 I2d) + 4 q^3 (1-q) I3,
 // with the mean over the cell of bilerp^W for one corner set (I1), two along an edge (I2a),
 // two across a diagonal (I2d) and three (I3). I1 and I2a have closed forms; I2d and I3 are
-// integrated numerically (a 128^2 midpoint rule, within ~1e-4 for W in [1e-3, 1e3]; W = 1,
+// integrated numerically (a 128^2 midpoint rule, within ~1e-4 for W in [1e-3, 2e3]; W = 1,
 // the common case, is exact: I2d = 1/2, I3 = 3/4).
 std::array<double, 3> bilerp_power_expectation(double w) {
-  w = std::clamp(std::isfinite(w) ? w : 1.0, 1e-3, 1e3);
+  w = std::clamp(std::isfinite(w) ? w : 1.0, 1e-3, 2e3);  // W in [1e-3, 1e3], and 2W
   if (w == 1.0) return {1.0, 3.0, 3.0};
   constexpr int k_n = 128;
   double i2d = 0.0, i3 = 0.0;
@@ -300,7 +300,11 @@ Result<PackedScene> pack_scene(const SceneAssets& assets, const ComposeOptions& 
       gl.salt = gpu::tvt_salt(d.seed, uint32_t(n), uint32_t(k), 3u);
       gl.patch_texels = float(double(gl.patch_fp) / 256.0);
       const std::array<double, 3> e = bilerp_power_expectation(l.w);
-      for (size_t i = 0; i < 3; ++i) gl.expect[i] = float(e[i]);
+      const std::array<double, 3> e_sq = bilerp_power_expectation(2.0 * l.w);  // second moment
+      for (size_t i = 0; i < 3; ++i) {
+        gl.expect[i] = float(e[i]);
+        gl.expect_sq[i] = float(e_sq[i]);
+      }
     }
   }
   out.cache_->layout.assign(p.materials, p.materials + d.materials.size());

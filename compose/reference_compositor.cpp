@@ -62,12 +62,34 @@ void blend_map_expected(double b, double a_mean, double a_var, double s, double&
   dev = ((smoothstep_moment(t1) - smoothstep_moment(t0)) / (2.0 * half) - tm * e) / c1;
 }
 
-// E[bilerp(m)^W] of a DPT layer whose corner masks are 1 with probability q
-// (TvtDptLayer::expect).
-double patch_expectation(const gpu::TvtDptLayer& L, double q) {
+// E[bilerp(m)^W] (coefficients TvtDptLayer::expect) or E[bilerp(m)^(2W)] (expect_sq) of a DPT
+// layer whose corner masks are 1 with probability q.
+double patch_moment(const float (&c)[3], double q) {
   const double r = 1.0 - q;
-  return q * q * q * q + double(L.expect[0]) * q * r * r * r + double(L.expect[1]) * q * q * r * r +
-         double(L.expect[2]) * q * q * q * r;
+  return q * q * q * q + double(c[0]) * q * r * r * r + double(c[1]) * q * q * r * r + double(c[2]) * q * q * q * r;
+}
+
+// The blend map's means (blend_map_expected) over a patch sum b = settled + X, where X, the
+// layers taken in expectation, lies in [0, span] with mean `mean` and variance `var` over the
+// footprint: X is replaced by the two-point distribution on [0, span] with that mean and
+// variance whose weights are those of a Bernoulli variable of the same mean mu (X/span is the
+// lower point with probability 1 - mu, the higher with probability mu; at the largest variance
+// the two points are 0 and span, at none both are the mean; docs/composition.md). The blend map is a sharp threshold where A hardly varies, so the
+// mean of its values is not its value at the mean coverage.
+void blend_map_of_patches(double settled, double mean, double var, double span, double a_mean, double a_var, double s,
+                          double& e, double& dev) {
+  const double mu = span > 0.0 ? std::clamp(mean / span, 0.0, 1.0) : 0.0;
+  const double sd = span > 0.0 ? std::sqrt(std::clamp(var, 0.0, mu * (1.0 - mu) * span * span)) / span : 0.0;
+  if (!(sd > 1e-4) || mu <= 0.0 || mu >= 1.0) {
+    blend_map_expected(std::min(settled + mean, 1.0), a_mean, a_var, s, e, dev);
+    return;
+  }
+  const double low = mu - sd * std::sqrt(mu / (1.0 - mu)), high = mu + sd * std::sqrt((1.0 - mu) / mu);
+  double e_low, d_low, e_high, d_high;
+  blend_map_expected(std::min(settled + low * span, 1.0), a_mean, a_var, s, e_low, d_low);
+  blend_map_expected(std::min(settled + high * span, 1.0), a_mean, a_var, s, e_high, d_high);
+  e = (1.0 - mu) * e_low + mu * e_high;
+  dev = (1.0 - mu) * d_low + mu * d_high;
 }
 
 // Linear fade: 0 at or below lo, 1 at or above hi (a step at lo when hi <= lo).
@@ -237,6 +259,7 @@ struct Ctx {
   void dpt(const gpu::TvtMaterial& m, int64_t x_fp, int64_t y_fp, double footprint, double plain, double height_a,
            double& b_out, double& h_out, bool prefiltered = false, double a_var = 0.0, double* dev = nullptr) const {
     double b = 0, h = 0, fade_max = 0;
+    double settled = 0, mean = 0, var = 0, span = 0;  // prefiltered: b = settled + X, X in [0, span]
     for (int k = 0; k < m.dpt_layer_count; ++k) {
       const gpu::TvtDptLayer& L = m.dpt[k];
       const double fade = ramp(double(L.patch_texels) / footprint, m.dpt_fade_lo, m.dpt_fade_hi);  // eq 4.4
@@ -247,11 +270,15 @@ struct Ctx {
         const double present = ramp(double(L.patch_texels), m.dpt_fade_lo, m.dpt_fade_hi);
         fade_max = std::max(fade_max, present);
         if (present <= 0.0) continue;
-        const double q = safe_pow(plain, double(L.exp_p) / std::max(double(L.exp_r), 1e-6));  // P(r^R <= p^P)
-        double term = (1.0 - exact) * patch_expectation(L, clamp01(q));
-        if (exact > 0.0) term += exact * patch_value(m, L, x_fp, y_fp);
-        b += present * term;
-        h += present * term * L.height_h;
+        const double q = clamp01(safe_pow(plain, double(L.exp_p) / std::max(double(L.exp_r), 1e-6)));  // P(r^R <= p^P)
+        const double expected = patch_moment(L.expect, q), weight = present * (1.0 - exact);
+        const double point = exact > 0.0 ? present * exact * patch_value(m, L, x_fp, y_fp) : 0.0;
+        settled += point;
+        mean += weight * expected;
+        var += weight * weight * std::max(patch_moment(L.expect_sq, q) - expected * expected, 0.0);
+        span += weight;
+        b += point + weight * expected;
+        h += (point + weight * expected) * L.height_h;
         continue;
       }
       fade_max = std::max(fade_max, fade);
@@ -264,7 +291,7 @@ struct Ctx {
     h = std::min(h, 1.0);
     if (prefiltered) {
       double e_patch, d_patch, e_plain, d_plain;
-      blend_map_expected(b, height_a, a_var, m.blend_sharpness, e_patch, d_patch);
+      blend_map_of_patches(settled, mean, var, span, height_a, a_var, m.blend_sharpness, e_patch, d_patch);
       blend_map_expected(plain, height_a, a_var, m.blend_sharpness, e_plain, d_plain);
       b_out = fade_max * e_patch + (1.0 - fade_max) * e_plain;
       if (dev) *dev = fade_max * d_patch + (1.0 - fade_max) * d_plain;

@@ -37,6 +37,9 @@ uint64_t scene_identity(const SceneDesc& scene, Method method, MipStrategy strat
   h = fnv1a(h, k_page_format);
   h = fnv1a(h, to_string(method));
   if (!strategy.direct()) h = fnv1a(h, to_string(strategy));
+  // Bump when the prefiltered strategy's expectations change (direct and supersampled pages
+  // keep their identity). 2: DPT's blend map over the patches' spread, not their mean.
+  if (strategy.prefiltered) h = fnv1a(h, "prefiltered maths 2");
   h = fnv1a(h, scene_to_json(scene));
   h = fnv1a(h, file_stamp(scene.terrain.heightmap.image_path));
   for (const MaterialDesc& m : scene.materials) {

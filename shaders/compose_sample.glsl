@@ -200,11 +200,35 @@ vec4 material_at(int n, int64_t x_fp, int64_t y_fp, float lod, out int64_t gx, o
   return sample_material(n, float(gx & mask) + fx, float(gy & mask) + fy, lod);
 }
 
-// E[bilerp(m)^W] of DPT layer k of material n for corner masks set with probability q.
+// E[bilerp(m)^W] (coefficients expect) and E[bilerp(m)^(2W)] (expect_sq) of DPT layer k of
+// material n for corner masks set with probability q.
 float patch_expectation(int n, int k, float q) {
   const float r = 1.0 - q;
   return q * q * q * q + P.materials[n].dpt[k].expect[0] * q * r * r * r + P.materials[n].dpt[k].expect[1] * q * q * r * r +
          P.materials[n].dpt[k].expect[2] * q * q * q * r;
+}
+float patch_second_moment(int n, int k, float q) {
+  const float r = 1.0 - q;
+  return q * q * q * q + P.materials[n].dpt[k].expect_sq[0] * q * r * r * r +
+         P.materials[n].dpt[k].expect_sq[1] * q * q * r * r + P.materials[n].dpt[k].expect_sq[2] * q * q * q * r;
+}
+
+// The blend map's means over a patch sum settled + X, X in [0, span] with this mean and variance
+// taken as a two-point distribution (reference_compositor.cpp blend_map_of_patches).
+void blend_map_of_patches(float settled, float mean, float var, float span, float a_mean, float a_var, float s,
+                          out float e, out float dev) {
+  const float mu = span > 0.0 ? clamp(mean / span, 0.0, 1.0) : 0.0;
+  const float sd = span > 0.0 ? sqrt(clamp(var, 0.0, mu * (1.0 - mu) * span * span)) / span : 0.0;
+  if (!(sd > 1e-4) || mu <= 0.0 || mu >= 1.0) {
+    blend_map_expected(min(settled + mean, 1.0), a_mean, a_var, s, e, dev);
+    return;
+  }
+  const float low = mu - sd * sqrt(mu / (1.0 - mu)), high = mu + sd * sqrt((1.0 - mu) / mu);
+  float e_low, d_low, e_high, d_high;
+  blend_map_expected(min(settled + low * span, 1.0), a_mean, a_var, s, e_low, d_low);
+  blend_map_expected(min(settled + high * span, 1.0), a_mean, a_var, s, e_high, d_high);
+  e = (1.0 - mu) * e_low + mu * e_high;
+  dev = (1.0 - mu) * d_low + mu * d_high;
 }
 
 // One DPT layer's w (eq 4.1-4.3) at a terrain position.
@@ -247,6 +271,7 @@ float patch_value(int n, int k, int64_t x_fp, int64_t y_fp) {
 void dpt(int n, int64_t x_fp, int64_t y_fp, float footprint, float plain, float height_a, bool prefiltered, float a_var,
          out float b_out, out float h_out, out float dev) {
   float b = 0.0, h = 0.0, fade_max = 0.0;
+  float settled = 0.0, mean = 0.0, var = 0.0, span = 0.0;  // prefiltered: b = settled + X, X in [0, span]
   const int layers = P.materials[n].dpt_layer_count;
   for (int k = 0; k < layers; ++k) {
     const float fade = ramp(P.materials[n].dpt[k].patch_texels / footprint, P.materials[n].dpt_fade_lo,
@@ -256,11 +281,15 @@ void dpt(int n, int64_t x_fp, int64_t y_fp, float footprint, float plain, float 
       const float exact = ramp(P.materials[n].dpt[k].patch_texels / footprint, P.prefilter_patch_lo, P.prefilter_patch_hi);
       fade_max = max(fade_max, present);
       if (present <= 0.0) continue;
-      const float q = safe_pow(plain, P.materials[n].dpt[k].exp_p / max(P.materials[n].dpt[k].exp_r, 1e-6));
-      float term = (1.0 - exact) * patch_expectation(n, k, clamp01(q));
-      if (exact > 0.0) term += exact * patch_value(n, k, x_fp, y_fp);
-      b += present * term;
-      h += present * term * P.materials[n].dpt[k].height_h;
+      const float q = clamp01(safe_pow(plain, P.materials[n].dpt[k].exp_p / max(P.materials[n].dpt[k].exp_r, 1e-6)));
+      const float expected = patch_expectation(n, k, q), weight = present * (1.0 - exact);
+      const float point = exact > 0.0 ? present * exact * patch_value(n, k, x_fp, y_fp) : 0.0;
+      settled += point;
+      mean += weight * expected;
+      var += weight * weight * max(patch_second_moment(n, k, q) - expected * expected, 0.0);
+      span += weight;
+      b += point + weight * expected;
+      h += (point + weight * expected) * P.materials[n].dpt[k].height_h;
       continue;
     }
     fade_max = max(fade_max, fade);
@@ -275,7 +304,7 @@ void dpt(int n, int64_t x_fp, int64_t y_fp, float footprint, float plain, float 
   const float s = P.materials[n].blend_sharpness;
   if (prefiltered) {
     float e_patch, d_patch, e_plain, d_plain;
-    blend_map_expected(b, height_a, a_var, s, e_patch, d_patch);
+    blend_map_of_patches(settled, mean, var, span, height_a, a_var, s, e_patch, d_patch);
     blend_map_expected(plain, height_a, a_var, s, e_plain, d_plain);
     b_out = fade_max * e_patch + (1.0 - fade_max) * e_plain;
     dev = fade_max * d_patch + (1.0 - fade_max) * d_plain;

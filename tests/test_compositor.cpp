@@ -406,9 +406,7 @@ TEST(Prefiltered, Mip0IsTheDirectComposition) {
 // Patches far smaller than a texel, over a material whose blend map A spreads over [0, 1]:
 // direct composition shows one patch's decision per texel, or (faded) the plain weight; the
 // prefiltered texel is the patches' expected coverage through the blend map's mean over A,
-// which is what the box filter of level 0 converges to. (Where A hardly varies, the blend map
-// is a sharp threshold of the patch ramps and the mean of the coverage is not its threshold:
-// docs/composition.md, "Prefiltered mips", says what that costs.)
+// which is what the box filter of level 0 converges to. (Where A hardly varies: the next test.)
 TEST(Prefiltered, ConvergesToTheBoxFilteredTruthWherePatchesAreSmall) {
   // Patches of 2 texels, present at level 0 (fade from 0.5 to 1 texel), 256 to a mip-5 texel;
   // P != R, where the coverage w^(P/R) is not the plain weight direct composition falls back to.
@@ -432,6 +430,40 @@ TEST(Prefiltered, ConvergesToTheBoxFilteredTruthWherePatchesAreSmall) {
       }
     EXPECT_LT(err_pre / 16, 0.06) << "P = " << pexp;  // the truth's own noise: ~256 patch decisions a texel
     EXPECT_LT(err_pre, 0.5 * err_direct) << "P = " << pexp;
+  }
+}
+
+// The same where A does not vary at all, so the blend map is a sharp threshold of the patch
+// ramps: the mean of the thresholded ramps is not the threshold of their mean coverage (here
+// the mean coverage, 1/2, is over the threshold everywhere, yet much of each cell is under it).
+// The prefiltered texel carries the ramps' spread (mean and variance), and lands near the box
+// filter where the mean coverage alone would miss it.
+TEST(Prefiltered, FollowsTheSpreadOfThePatchesUnderASharpBlendMap) {
+  for (const auto [alpha, wexp] : {std::pair{200, 1.0}, {150, 1.0}, {200, 2.0}, {90, 0.5}}) {
+    SceneAssets a = dpt_scene(2, 0.5f, 1.0, 1.0, wexp);
+    a.desc.materials[1].dpt.fade_lo_texels = 0.5;
+    a.desc.materials[1].dpt.fade_hi_texels = 1.0;
+    ImageRGBA8 flat(16, 16);
+    for (int i = 0; i < 256; ++i) {
+      uint8_t* t = flat.at(i % 16, i / 16);
+      t[0] = 0, t[1] = 250, t[2] = 0, t[3] = uint8_t(alpha);
+    }
+    a.materials->edit(1).albedo = build_mip_chain(flat);
+    const PackedScene direct = pack(a), pre = pack(a, prefiltered_options());
+    double err_direct = 0, err_pre = 0, truth_mean = 0;
+    for (int64_t y = 0; y < 4; ++y)
+      for (int64_t x = 0; x < 4; ++x) {
+        const double truth = ground_truth_texel(direct, 5, x + 8, y + 8).g;
+        truth_mean += truth / 16;
+        err_direct += std::abs(compose_texel_reference(direct, 5, x + 8, y + 8).g - truth);
+        err_pre += std::abs(compose_texel_reference(pre, 5, x + 8, y + 8).g - truth);
+      }
+    // With the mean coverage alone the texel was the blend map's value at it: 0.33 off the
+    // truth at A = 200 (all patch or none), as far as direct composition.
+    const std::string what = "A " + std::to_string(alpha) + ", W " + std::to_string(wexp) + ", truth " +
+                             std::to_string(truth_mean) + ", direct error " + std::to_string(err_direct / 16);
+    EXPECT_LT(err_pre / 16, 0.16) << what;
+    EXPECT_LT(err_pre, 0.5 * err_direct) << what;
   }
 }
 

@@ -29,7 +29,7 @@ TVT_CONST int TVT_STATS_FEATURE_COLOUR = 64;    // RGBA: feature texels' mean mi
 
 TVT_CONST int TVT_COMPOSE_GROUP = 16;  // compute workgroup edge (texels); lavapipe pays ~16 us per group
 
-struct TvtDptLayer {      // 48 bytes
+struct TvtDptLayer {      // 56 bytes
   int64_t patch_fp;       // patch edge S_k, level-0 texels * 256
   float exp_p;            // P_k (eq 4.1)
   float exp_r;            // R_k (eq 4.2)
@@ -41,10 +41,12 @@ struct TvtDptLayer {      // 48 bytes
   // independent with P(m = 1) = q is q^4 + sum_i expect[i] q^(i+1) (1 - q)^(3-i), i = 0, 1, 2
   // (docs/composition.md, "Prefiltered mips").
   float expect[3];
-  float pad0;
+  // ... and E[bilerp(m)^(2W)], the same polynomial with these coefficients: with expect, the
+  // variance of the layer's value over many patch cells.
+  float expect_sq[3];
 };
 
-struct TvtMaterial {      // 320 bytes
+struct TvtMaterial {      // 352 bytes
   int64_t period_fp;      // tiling period T_n: level-0 texels per repeat * 256
   uint texel_offset;      // first texel of mip 0 in the material texel buffer (RGBA8 words)
   uint meta_offset;       // first texel in the meta buffer (uvec2 each), or TVT_NO_META
@@ -111,10 +113,10 @@ struct TvtPageJob {       // one page to compose into one cache slot
 TVT_END
 
 #ifdef __cplusplus
-static_assert(sizeof(tvt::gpu::TvtDptLayer) == 48);
-static_assert(sizeof(tvt::gpu::TvtMaterial) == 320);
+static_assert(sizeof(tvt::gpu::TvtDptLayer) == 56);
+static_assert(sizeof(tvt::gpu::TvtMaterial) == 352);
 static_assert(offsetof(tvt::gpu::TvtMaterial, dpt) == 128);
-static_assert(sizeof(tvt::gpu::TvtComposeParams) == 64 + 16 * 320);
+static_assert(sizeof(tvt::gpu::TvtComposeParams) == 64 + 16 * 352);
 static_assert(offsetof(tvt::gpu::TvtComposeParams, materials) == 64);
 static_assert(sizeof(tvt::gpu::TvtPageJob) == 32);
 #endif
