@@ -439,7 +439,7 @@ TEST(Prefiltered, ConvergesToTheBoxFilteredTruthWherePatchesAreSmall) {
 // The prefiltered texel carries the ramps' spread (mean and variance), and lands near the box
 // filter where the mean coverage alone would miss it.
 TEST(Prefiltered, FollowsTheSpreadOfThePatchesUnderASharpBlendMap) {
-  for (const auto [alpha, wexp] : {std::pair{200, 1.0}, {150, 1.0}, {200, 2.0}, {90, 0.5}}) {
+  for (const auto& [alpha, wexp] : {std::pair{200, 1.0}, {150, 1.0}, {200, 2.0}, {90, 0.5}}) {
     SceneAssets a = dpt_scene(2, 0.5f, 1.0, 1.0, wexp);
     a.desc.materials[1].dpt.fade_lo_texels = 0.5;
     a.desc.materials[1].dpt.fade_hi_texels = 1.0;
