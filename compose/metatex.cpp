@@ -160,7 +160,8 @@ MetaTexture build_meta_texture(const FeatureLabels& labels, const ImageGray8& va
     queue.assign(1, seed);
     for (size_t head = 0; head < queue.size(); ++head) {
       const size_t i = queue[head];
-      const int64_t ux = unwrapped_x(i), uy = unwrapped_y(i);
+      const int x = int(i % size_t(r)), y = int(i / size_t(r));
+      const int64_t ux = x + int64_t(wind_x[i]) * r, uy = y + int64_t(wind_y[i]) * r;  // unwrapped_x/y(i)
       feature.sum_x += ux;
       feature.sum_y += uy;
       ++feature.texels;
@@ -168,7 +169,6 @@ MetaTexture build_meta_texture(const FeatureLabels& labels, const ImageGray8& va
       feature.max_x = std::max(feature.max_x, ux);
       feature.min_y = std::min(feature.min_y, uy);
       feature.max_y = std::max(feature.max_y, uy);
-      const int x = int(i % size_t(r)), y = int(i / size_t(r));
       for (int s = 0; s < 4; ++s) {
         // The neighbour one step away: its texel and winding, without a division per step.
         int nx = x + k_step_x[s], ny = y + k_step_y[s];

@@ -276,8 +276,7 @@ struct Ctx {
         settled += point;
         mean += weight * expected;
         var += weight * weight * std::max(patch_moment(L.expect_sq, q) - expected * expected, 0.0);
-        span += weight;
-        b += point + weight * expected;
+        span += weight;  // b is settled + mean here, read by blend_map_of_patches
         h += (point + weight * expected) * L.height_h;
         continue;
       }

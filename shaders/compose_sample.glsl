@@ -287,8 +287,7 @@ void dpt(int n, int64_t x_fp, int64_t y_fp, float footprint, float plain, float 
       settled += point;
       mean += weight * expected;
       var += weight * weight * max(patch_second_moment(n, k, q) - expected * expected, 0.0);
-      span += weight;
-      b += point + weight * expected;
+      span += weight;  // b is settled + mean here, read by blend_map_of_patches
       h += (point + weight * expected) * P.materials[n].dpt[k].height_h;
       continue;
     }
