@@ -1,7 +1,10 @@
-// The built-in default scene: five generated materials over an fBm terrain, one of each
+// The built-in default scene: five generated materials over an 8 km fBm terrain, one of each
 // composition mode family, hex-tiling on the four whose tiling would show (the FBPB cobbles
-// break their repetition by their own feature choice). The same text is in docs/default-scene.json (a test keeps the two
-// identical), so users can copy it as a starting point.
+// break their repetition by their own feature choice). The VT is 2^20 texels per side, 7.8 mm a
+// texel: material tiles of 2-5 m and grass/mud patches of 1-8 m, ground-scale detail that only a
+// virtual texture can hold (level 0 alone would be 4 TiB of RGBA8). The same text is in
+// docs/default-scene.json (a test keeps the two identical), so users can copy it as a starting
+// point.
 #include "compose/scene.h"
 
 namespace tvt {
@@ -14,7 +17,7 @@ constexpr std::string_view k_default_scene = R"json({
     "height_m": 900,
     "heightmap": {"fbm": {"size": 512, "seed": 7, "octaves": 7, "frequency": 3, "gain": 0.5, "lacunarity": 2}}
   },
-  "vt": {"log2_size": 16, "page_texels": 128, "border_texels": 4},
+  "vt": {"log2_size": 20, "page_texels": 128, "border_texels": 4},
   "linear_boost": 1.5,
   "materials": [
     {
@@ -35,8 +38,8 @@ constexpr std::string_view k_default_scene = R"json({
                           "noise": {"amplitude": 0.35, "frequency": 24}}},
       "dpt": {
         "layers": [
-          {"patch_texels": 160, "p": 1, "r": 1, "w": 1, "h": 0.6},
-          {"patch_texels": 20, "p": 0.5, "r": 1.5, "w": 1, "h": 0.3}
+          {"patch_texels": 1024, "p": 1, "r": 1, "w": 1, "h": 0.6},
+          {"patch_texels": 160, "p": 0.5, "r": 1.5, "w": 1, "h": 0.3}
         ],
         "fade_texels": [2, 8]
       }
@@ -51,7 +54,7 @@ constexpr std::string_view k_default_scene = R"json({
                           "noise": {"amplitude": 0.3, "frequency": 20}}},
       "dpt": {
         "layers": [
-          {"patch_texels": 128, "p": 1, "r": 1, "w": 1, "h": 0.5}
+          {"patch_texels": 768, "p": 1, "r": 1, "w": 1, "h": 0.5}
         ]
       }
     },

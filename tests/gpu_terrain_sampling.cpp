@@ -102,19 +102,20 @@ TEST_F(TerrainSamplingTest, PlainTextureLevelZeroIsTheComposedPagesAndTheChainIs
   auto packed = pack_scene(assets, options_for(Method::FbpbDpt));
   ASSERT_TRUE(packed.ok());
   PlainTextureOptions po;
-  po.log2_size = 9;  // VT mip 7 of 2^16: 4 x 4 pages
+  po.log2_size = 9;  // VT mip log2(V) - 9: 4 x 4 pages
   po.batch_pages = 5;  // batches that do not divide the page count
   auto plain = PlainTexture::create(ctx(), packed.value(), po);
   ASSERT_TRUE(plain.ok()) << plain.error().message;
   const PlainTexture& p = *plain.value();
-  EXPECT_EQ(p.vt_mip(), 7u);
+  const uint32_t mip = assets.desc.vt.log2_size - 9;
+  EXPECT_EQ(p.vt_mip(), mip);
   EXPECT_EQ(p.pages_composed(), 16u);
   EXPECT_EQ(p.image().mip_levels(), 10u);
 
   const std::vector<uint8_t> l0 = read_level(ctx(), p.image(), 0), l1 = read_level(ctx(), p.image(), 1);
   auto composer = GpuComposer::create(ctx(), packed.value(), 4);
   ASSERT_TRUE(composer.ok());
-  const std::vector<PageId> pages = {{7, 0, 0}, {7, 3, 1}, {7, 2, 3}};
+  const std::vector<PageId> pages = {{mip, 0, 0}, {mip, 3, 1}, {mip, 2, 3}};
   const auto composed = composer.value()->compose_pages(pages).value();
   const uint32_t P = 128, B = 4, S = P + 2 * B, size = 512;
   for (size_t i = 0; i < pages.size(); ++i)

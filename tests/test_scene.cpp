@@ -113,7 +113,7 @@ TEST(DefaultScene, HasTheDocumentedContent) {
   EXPECT_DOUBLE_EQ(s.terrain.heightmap.lacunarity, 2.0);
   EXPECT_DOUBLE_EQ(s.terrain.extent_m, 8192.0);
   EXPECT_DOUBLE_EQ(s.terrain.height_m, 900.0);
-  EXPECT_EQ(s.vt.log2_size, 16u);
+  EXPECT_EQ(s.vt.log2_size, 20u);
   EXPECT_EQ(s.vt.page_texels, 128u);
   EXPECT_EQ(s.vt.border_texels, 4u);
   EXPECT_DOUBLE_EQ(s.linear_boost, 1.5);
@@ -156,12 +156,12 @@ TEST(DefaultScene, HasTheDocumentedContent) {
   EXPECT_DOUBLE_EQ(grass.weight.noise_amplitude, 0.35);
   EXPECT_DOUBLE_EQ(grass.weight.noise_frequency, 24.0);
   ASSERT_EQ(grass.dpt.layers.size(), 2u);
-  EXPECT_DOUBLE_EQ(grass.dpt.layers[0].patch_texels, 160.0);
+  EXPECT_DOUBLE_EQ(grass.dpt.layers[0].patch_texels, 1024.0);
   EXPECT_DOUBLE_EQ(grass.dpt.layers[0].p, 1.0);
   EXPECT_DOUBLE_EQ(grass.dpt.layers[0].r, 1.0);
   EXPECT_DOUBLE_EQ(grass.dpt.layers[0].w, 1.0);
   EXPECT_DOUBLE_EQ(grass.dpt.layers[0].h, 0.6);
-  EXPECT_DOUBLE_EQ(grass.dpt.layers[1].patch_texels, 20.0);
+  EXPECT_DOUBLE_EQ(grass.dpt.layers[1].patch_texels, 160.0);
   EXPECT_DOUBLE_EQ(grass.dpt.layers[1].p, 0.5);
   EXPECT_DOUBLE_EQ(grass.dpt.layers[1].r, 1.5);
   EXPECT_DOUBLE_EQ(grass.dpt.layers[1].w, 1.0);
@@ -185,7 +185,7 @@ TEST(DefaultScene, HasTheDocumentedContent) {
   EXPECT_DOUBLE_EQ(mud.weight.noise_amplitude, 0.3);
   EXPECT_DOUBLE_EQ(mud.weight.noise_frequency, 20.0);
   ASSERT_EQ(mud.dpt.layers.size(), 1u);
-  EXPECT_DOUBLE_EQ(mud.dpt.layers[0].patch_texels, 128.0);
+  EXPECT_DOUBLE_EQ(mud.dpt.layers[0].patch_texels, 768.0);
   EXPECT_DOUBLE_EQ(mud.dpt.layers[0].h, 0.5);
 
   const MaterialDesc& rock = s.materials[3];
@@ -240,6 +240,26 @@ TEST(DefaultScene, CompiledTextIsIdenticalToDocsCopy) {
   const fs::path docs = fs::path(TVT_SOURCE_DIR) / "docs" / "default-scene.json";
   ASSERT_TRUE(fs::exists(docs)) << docs;
   EXPECT_EQ(read_text(docs), std::string(default_scene_json()));
+}
+
+// The built-in scene before it grew to V = 2^20, kept so that the figures measured on it
+// (docs/benchmarks.md, docs/stored-megatexture.md) can be reproduced: it must keep loading, and
+// differ from today's scene in the VT size and the DPT patch sizes only.
+TEST(DefaultScene, EarlierBuiltInSceneLoadsAndDiffersOnlyInScale) {
+  const fs::path file = fs::path(TVT_SOURCE_DIR) / "examples" / "scenes" / "builtin-v16.json";
+  ASSERT_TRUE(fs::exists(file)) << file;
+  Result<SceneDesc> old = parse_scene(read_text(file), file.string(), file.parent_path().string());
+  ASSERT_TRUE(old.ok()) << old.error().message;
+  EXPECT_EQ(old->vt.log2_size, 16u);
+  EXPECT_EQ(old->materials[1].dpt.layers[0].patch_texels, 160.0);
+  EXPECT_EQ(old->materials[1].dpt.layers[1].patch_texels, 20.0);
+  EXPECT_EQ(old->materials[2].dpt.layers[0].patch_texels, 128.0);
+  SceneDesc now = default_scene();
+  now.vt.log2_size = 16;
+  now.materials[1].dpt.layers[0].patch_texels = 160.0;
+  now.materials[1].dpt.layers[1].patch_texels = 20.0;
+  now.materials[2].dpt.layers[0].patch_texels = 128.0;
+  EXPECT_EQ(scene_to_json(*old), scene_to_json(now));
 }
 
 TEST(DefaultScene, RoundTripsThroughJson) {

@@ -30,9 +30,13 @@ inline int run_terravt(const std::filesystem::path& dir, const std::string& args
 inline std::string write_small_default_scene(const std::filesystem::path& dir) {
   std::ifstream in(std::string(TVT_SOURCE_DIR) + "/docs/default-scene.json");
   std::string json((std::istreambuf_iterator<char>(in)), {});
-  const std::string key = "\"log2_size\": 16";
-  EXPECT_NE(json.find(key), std::string::npos);
-  if (json.find(key) != std::string::npos) json.replace(json.find(key), key.size(), "\"log2_size\": 10");
+  const std::string key = "\"log2_size\": ";
+  const std::size_t at = json.find(key);
+  EXPECT_NE(at, std::string::npos);
+  if (at != std::string::npos) {
+    const std::size_t digits = json.find_first_not_of("0123456789", at + key.size());
+    json.replace(at + key.size(), digits - at - key.size(), "10");
+  }
   const std::string scene = (dir / "scene.json").string();
   std::ofstream(scene) << json;
   return scene;
