@@ -43,8 +43,19 @@ struct BakeArgs {
   bool cpu = false;
   bool restart = false;
   bool overwrite = false;  // replace an existing --out store
+  bool ignore_free_space = false;
   bool quiet = false;
 };
+
+// Composed terrain pages compress 2-4:1 with zstd (docs/page-store.md); a plan that would not fit
+// on the disk even at this ratio is refused before anything is written.
+constexpr uint64_t k_best_compression = 32;
+
+std::string gigabytes(uint64_t bytes) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.1f GB", double(bytes) / 1e9);
+  return buf;
+}
 
 std::atomic<bool> g_interrupted{false};
 extern "C" void on_sigint(int) { g_interrupted = true; }
@@ -139,6 +150,27 @@ int run_bake(const BakeArgs& a) {
   auto plan = bake_plan(vt, region, pyramid);
   if (!plan) return fail(cmd, "--region/--mips: " + plan.error().message, 2);
   const ShardRange part = shard_range(plan->size(), shard_index, shard_count);
+  if (!a.ignore_free_space) {
+    // The folder's free space plus what an interrupted bake there already holds.
+    std::error_code ec;
+    const std::filesystem::path out = std::filesystem::absolute(a.out, ec);
+    const std::filesystem::space_info space = std::filesystem::space(out.parent_path(), ec);
+    if (!ec) {
+      std::error_code size_ec;
+      const uintmax_t partial = std::filesystem::file_size(a.out + ".partial", size_ec);
+      const uint64_t have = uint64_t(space.available) + (size_ec ? 0 : uint64_t(partial));
+      const uint64_t side = vt.slot_texels();
+      const uint64_t raw = part.count * side * side * 4;
+      if (raw / k_best_compression > have)
+        return fail(cmd, "--out: " + a.out + ": the bake of " + std::to_string(part.count) + " pages is " + gigabytes(raw) +
+                             " raw and needs at least " + gigabytes(raw / k_best_compression) + " even at " +
+                             std::to_string(k_best_compression) + ":1 compression, but " + out.parent_path().string() +
+                             " has " + gigabytes(have) +
+                             " free; bake a --region or fewer --mips, split it with --shard onto several disks, or pass "
+                             "--ignore-free-space",
+                    2);
+    }
+  }
 
   const std::string strategy_name =
       !a.mip_strategy.empty() ? a.mip_strategy : pyramid == StorePyramid::filtered ? "direct" : "prefiltered";
@@ -241,6 +273,9 @@ const CommandRegistrar k_register{
                    "Discard an interrupted <out>.partial instead of resuming it (a partial of another plan, scene or "
                    "settings is refused without it)");
       app.add_flag("--overwrite", a->overwrite, "Replace an existing --out store and --save-dict file (otherwise an error)");
+      app.add_flag("--ignore-free-space", a->ignore_free_space,
+                   "Start even when the plan cannot fit in the free space of --out's folder at 32:1 compression "
+                   "(refused by default, before anything is written)");
       app.add_option("--gpu", a->gpu_name, "Vulkan device name substring or index");
       app.add_flag("--quiet", a->quiet, "No progress line");
       return [a] { return run_bake(*a); };
