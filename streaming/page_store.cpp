@@ -78,7 +78,15 @@ Status validate(const StoreDesc& d, const std::string& where) {
   return Ok{};
 }
 
-Result<std::vector<PageId>> bake_plan(const VtConfig& vt, const BakeRegion& r, StorePyramid order) {
+namespace {
+
+// The page rectangle of each mip of a plan, coarsest first (spans[k] is mip mip_hi - k), and in
+// `total` their page count. Errors on an empty or invalid region and beyond k_max_plan_pages.
+struct PlanSpan {
+  uint32_t mip;
+  uint64_t x0, x1, y0, y1;
+};
+Result<std::vector<PlanSpan>> plan_spans(const VtConfig& vt, const BakeRegion& r, uint64_t& total) {
   if (auto s = validate(vt, "bake plan: vt"); !s) return s.error();
   const uint64_t size = vt.size_texels();
   const uint64_t x1 = std::min(r.x1, size), y1 = std::min(r.y1, size);
@@ -91,26 +99,40 @@ Result<std::vector<PageId>> bake_plan(const VtConfig& vt, const BakeRegion& r, S
   if (r.mip_lo > mip_hi)
     return make_error("bake plan: region mip_lo: " + std::to_string(r.mip_lo) + " is above mip_hi " +
                       std::to_string(mip_hi) + " (top mip " + std::to_string(top) + ")");
-  struct Span { uint64_t x0, x1, y0, y1; };
-  std::vector<Span> spans;
-  uint64_t total = 0;
+  std::vector<PlanSpan> spans;
+  total = 0;
   for (uint32_t m = mip_hi + 1; m-- > r.mip_lo;) {
     const uint64_t footprint = uint64_t(vt.page_texels) << m;  // level-0 texels per page side
-    const Span s{r.x0 / footprint, (x1 + footprint - 1) / footprint, r.y0 / footprint, (y1 + footprint - 1) / footprint};
+    const PlanSpan s{m, r.x0 / footprint, (x1 + footprint - 1) / footprint, r.y0 / footprint,
+                     (y1 + footprint - 1) / footprint};
     total += (s.x1 - s.x0) * (s.y1 - s.y0);
     if (total > k_max_plan_pages)
       return make_error("bake plan: region: more than " + std::to_string(k_max_plan_pages) +
                         " pages; bake the terrain in smaller regions or fewer mips");
     spans.push_back(s);
   }
+  return spans;
+}
+
+}  // namespace
+
+Result<uint64_t> bake_plan_pages(const VtConfig& vt, const BakeRegion& r) {
+  uint64_t total = 0;
+  auto spans = plan_spans(vt, r, total);
+  if (!spans) return spans.error();
+  return total;
+}
+
+Result<std::vector<PageId>> bake_plan(const VtConfig& vt, const BakeRegion& r, StorePyramid order) {
+  uint64_t total = 0;
+  auto spans = plan_spans(vt, r, total);
+  if (!spans) return spans.error();
   std::vector<PageId> plan;
   plan.reserve(total);
-  for (size_t i = 0; i < spans.size(); ++i) {
-    const size_t k = order == StorePyramid::filtered ? spans.size() - 1 - i : i;  // spans[k] is mip mip_hi - k
-    const Span& s = spans[k];
-    const uint32_t m = mip_hi - uint32_t(k);
+  for (size_t i = 0; i < spans->size(); ++i) {
+    const PlanSpan& s = (*spans)[order == StorePyramid::filtered ? spans->size() - 1 - i : i];
     for (uint64_t y = s.y0; y < s.y1; ++y)
-      for (uint64_t x = s.x0; x < s.x1; ++x) plan.push_back(PageId{m, uint32_t(x), uint32_t(y)});
+      for (uint64_t x = s.x0; x < s.x1; ++x) plan.push_back(PageId{s.mip, uint32_t(x), uint32_t(y)});
   }
   return plan;
 }

@@ -75,6 +75,8 @@ inline constexpr uint64_t k_max_plan_pages = uint64_t(1) << 28;  // bake larger 
 // Errors on an empty or invalid region.
 Result<std::vector<PageId>> bake_plan(const VtConfig& vt, const BakeRegion& region,
                                       StorePyramid order = StorePyramid::composed);
+// bake_plan(vt, region).size() without enumerating the plan (same errors).
+Result<uint64_t> bake_plan_pages(const VtConfig& vt, const BakeRegion& region);
 
 // Deterministic part i of n of a plan of `count` pages: [first, first+count). The first
 // `plan_pages % n` parts get one page more. {0, 0} when n == 0 or i >= n.

@@ -141,9 +141,10 @@ TEST(Components, LibterravtAloneRefusesWhatNeedsTheComposeComponentNamingIt) {
     ASSERT_FALSE(vt.ok()) << field;
     EXPECT_EQ(vt.error().kind, terravt::ErrorKind::invalid_argument) << vt.error().message;
     EXPECT_NE(vt.error().message.find("VirtualTextureDesc::" + field), std::string::npos) << vt.error().message;
-    if (field != "layout")
+    if (field != "layout") {
       EXPECT_NE(vt.error().message.find("terravt::compose::create_virtual_texture"), std::string::npos)
           << vt.error().message;
+    }
   };
   refused(small_desc(), "source");  // composed, the default
   terravt::VirtualTextureDesc d = small_desc();

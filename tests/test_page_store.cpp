@@ -1,6 +1,8 @@
 // Page store format and reader: round trips, determinism, and a reader that never trusts the
 // file (every truncated prefix, every flipped byte, bad fields named in errors).
 #include <gtest/gtest.h>
+
+#include <random>
 #include <sys/mman.h>
 #include <unistd.h>
 
@@ -111,6 +113,40 @@ TEST(BakePlan, RejectsEmptyAndInvalidRegionsByField) {
   EXPECT_NE(bad_vt.error().message.find("page_texels"), std::string::npos);
   // 2^30 texels with 16-texel pages would be 2^52 pages: refused before allocating.
   auto huge = bake_plan(VtConfig{30, 16, 4}, BakeRegion{});
+  ASSERT_FALSE(huge.ok());
+  EXPECT_NE(huge.error().message.find("smaller regions"), std::string::npos);
+}
+
+// bake_plan_pages counts what bake_plan enumerates, for seeded random regions and mip ranges
+// (some empty or inverted: then both fail alike), and refuses the same oversized plans.
+TEST(BakePlan, PageCountEqualsTheEnumeratedPlan) {
+  std::mt19937_64 rng(20261127);
+  for (const VtConfig vt : {VtConfig{10, 64, 4}, VtConfig{14, 128, 4}, VtConfig{12, 16, 2}}) {
+    const uint64_t size = vt.size_texels();
+    for (int i = 0; i < 300; ++i) {
+      BakeRegion r;
+      r.x0 = rng() % (size + 8);
+      r.y0 = rng() % (size + 8);
+      r.x1 = i % 7 == 0 ? UINT64_MAX : r.x0 + rng() % (size / 2 + 1);
+      r.y1 = i % 5 == 0 ? UINT64_MAX : r.y0 + rng() % (size / 2 + 1);
+      r.mip_lo = uint32_t(rng() % vt.mip_count());
+      r.mip_hi = i % 3 == 0 ? UINT32_MAX : uint32_t(rng() % (vt.mip_count() + 2));
+      for (const StorePyramid order : {StorePyramid::composed, StorePyramid::filtered}) {
+        const auto plan = bake_plan(vt, r, order);
+        const auto pages = bake_plan_pages(vt, r);
+        ASSERT_EQ(plan.ok(), pages.ok()) << i;
+        if (plan.ok()) {
+          EXPECT_EQ(pages.value(), plan->size()) << i;
+        } else {
+          EXPECT_EQ(pages.error().message, plan.error().message) << i;
+        }
+      }
+    }
+  }
+  const auto whole = bake_plan_pages(VtConfig{20, 128, 4}, BakeRegion{});  // the built-in scene
+  ASSERT_TRUE(whole.ok());
+  EXPECT_EQ(whole.value(), 89478485u);
+  const auto huge = bake_plan_pages(VtConfig{30, 16, 4}, BakeRegion{});
   ASSERT_FALSE(huge.ok());
   EXPECT_NE(huge.error().message.find("smaller regions"), std::string::npos);
 }

@@ -147,9 +147,11 @@ int run_bake(const BakeArgs& a) {
     region.mip_lo = a.mips[0];
     region.mip_hi = a.mips[1];
   }
-  auto plan = bake_plan(vt, region, pyramid);
-  if (!plan) return fail(cmd, "--region/--mips: " + plan.error().message, 2);
-  const ShardRange part = shard_range(plan->size(), shard_index, shard_count);
+  // Counted before it is enumerated, so that a plan that cannot fit is refused at once (the
+  // whole built-in scene's plan is 89 M page ids, 1 GB).
+  const auto plan_pages = bake_plan_pages(vt, region);
+  if (!plan_pages) return fail(cmd, "--region/--mips: " + plan_pages.error().message, 2);
+  const ShardRange part = shard_range(plan_pages.value(), shard_index, shard_count);
   if (!a.ignore_free_space) {
     // The folder's free space plus what an interrupted bake there already holds.
     std::error_code ec;
@@ -171,6 +173,8 @@ int run_bake(const BakeArgs& a) {
                     2);
     }
   }
+  auto plan = bake_plan(vt, region, pyramid);
+  if (!plan) return fail(cmd, "--region/--mips: " + plan.error().message, 2);
 
   const std::string strategy_name =
       !a.mip_strategy.empty() ? a.mip_strategy : pyramid == StorePyramid::filtered ? "direct" : "prefiltered";
