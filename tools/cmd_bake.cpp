@@ -47,7 +47,7 @@ struct BakeArgs {
   bool quiet = false;
 };
 
-// Composed terrain pages compress 2-4:1 with zstd (docs/page-store.md); a plan that would not fit
+// Composed terrain pages compress about 1.4-3:1 with zstd (docs/page-store.md); a plan that would not fit
 // on the disk even at this ratio is refused before anything is written.
 constexpr uint64_t k_best_compression = 32;
 
@@ -157,7 +157,7 @@ int run_bake(const BakeArgs& a) {
     std::error_code ec;
     const std::filesystem::path out = std::filesystem::absolute(a.out, ec);
     const std::filesystem::space_info space = std::filesystem::space(out.parent_path(), ec);
-    if (!ec) {
+    if (!ec && space.capacity > 0) {  // some virtual file systems report no sizes at all
       std::error_code size_ec;
       const uintmax_t partial = std::filesystem::file_size(a.out + ".partial", size_ec);
       const uint64_t have = uint64_t(space.available) + (size_ec ? 0 : uint64_t(partial));
