@@ -207,15 +207,10 @@ TEST_F(StoreCli, BadFlagsNameTheFieldAndWriteNothing) {
 // 207 GB at 32:1) is checked too where the disk has less than that free. A timeout turns a
 // regression (a bake that starts) into a failure, not a hang.
 TEST_F(StoreCli, BakeThatCannotFitTheDiskIsRefusedBeforeWritingAnything) {
-  std::ifstream in(std::string(TVT_SOURCE_DIR) + "/docs/default-scene.json");
-  std::string json((std::istreambuf_iterator<char>(in)), {});
-  const std::string vt = "\"log2_size\": 20, \"page_texels\": 128";
-  ASSERT_NE(json.find(vt), std::string::npos);
-  json.replace(json.find(vt), vt.size(), "\"log2_size\": 23, \"page_texels\": 1024");
-  std::ofstream(path("huge.json")) << json;
+  const std::string huge = tvt::test::write_default_scene_with_vt(
+      dir_, R"({"log2_size": 23, "page_texels": 1024, "border_texels": 4})", "huge.json");
   const std::string out = path("whole.tvt");
-  EXPECT_EQ(tvt::test::run_terravt(dir_, "bake --cpu --quiet --scene " + path("huge.json") + " --out " + out, output_,
-                                   "timeout 120 "),
+  EXPECT_EQ(tvt::test::run_terravt(dir_, "bake --cpu --quiet --scene " + huge + " --out " + out, output_, "timeout 120 "),
             2)
       << output_;
   for (const char* part : {"--out", "whole.tvt", "89478485 pages", "381186.9 GB raw", "11912.1 GB", "free",

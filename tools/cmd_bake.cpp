@@ -12,6 +12,7 @@
 #include <fstream>
 #include <iterator>
 #include <memory>
+#include <optional>
 
 #include "streaming/file_io.h"
 #include "tools/cli_common.h"
@@ -55,6 +56,25 @@ std::string gigabytes(uint64_t bytes) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.1f GB", double(bytes) / 1e9);
   return buf;
+}
+
+// Why a bake of `pages` pages of `page_bytes` cannot fit in the free space of `out`'s folder
+// (plus what an interrupted bake there already holds) even at k_best_compression; nothing when
+// it can, or when the file system reports no sizes (some virtual ones).
+std::optional<std::string> too_big_for_disk(const std::string& out, uint64_t pages, uint64_t page_bytes) {
+  const uint64_t raw = pages * page_bytes;
+  std::error_code ec;
+  const std::filesystem::path folder = std::filesystem::absolute(out, ec).parent_path();
+  const std::filesystem::space_info space = std::filesystem::space(folder, ec);
+  if (ec || space.capacity == 0) return std::nullopt;
+  const uintmax_t partial = std::filesystem::file_size(out + ".partial", ec);
+  const uint64_t have = uint64_t(space.available) + (ec ? 0 : uint64_t(partial));
+  if (raw / k_best_compression <= have) return std::nullopt;
+  return "--out: " + out + ": the bake of " + std::to_string(pages) + " pages is " + gigabytes(raw) +
+         " raw and needs at least " + gigabytes(raw / k_best_compression) + " even at " +
+         std::to_string(k_best_compression) + ":1 compression, but " + folder.string() + " has " + gigabytes(have) +
+         " free; bake a --region or fewer --mips, split it with --shard onto several disks, or pass "
+         "--ignore-free-space";
 }
 
 std::atomic<bool> g_interrupted{false};
@@ -147,34 +167,11 @@ int run_bake(const BakeArgs& a) {
     region.mip_lo = a.mips[0];
     region.mip_hi = a.mips[1];
   }
-  // Counted before it is enumerated, so that a plan that cannot fit is refused at once (the
-  // whole built-in scene's plan is 89 M page ids, 1 GB).
+  // Counted before it is enumerated, so that a plan that cannot fit is refused before its page
+  // ids are listed (the whole built-in scene's plan is 89 M of them, 1 GB).
   const auto plan_pages = bake_plan_pages(vt, region);
   if (!plan_pages) return fail(cmd, "--region/--mips: " + plan_pages.error().message, 2);
   const ShardRange part = shard_range(plan_pages.value(), shard_index, shard_count);
-  if (!a.ignore_free_space) {
-    // The folder's free space plus what an interrupted bake there already holds.
-    std::error_code ec;
-    const std::filesystem::path out = std::filesystem::absolute(a.out, ec);
-    const std::filesystem::space_info space = std::filesystem::space(out.parent_path(), ec);
-    if (!ec && space.capacity > 0) {  // some virtual file systems report no sizes at all
-      std::error_code size_ec;
-      const uintmax_t partial = std::filesystem::file_size(a.out + ".partial", size_ec);
-      const uint64_t have = uint64_t(space.available) + (size_ec ? 0 : uint64_t(partial));
-      const uint64_t side = vt.slot_texels();
-      const uint64_t raw = part.count * side * side * 4;
-      if (raw / k_best_compression > have)
-        return fail(cmd, "--out: " + a.out + ": the bake of " + std::to_string(part.count) + " pages is " + gigabytes(raw) +
-                             " raw and needs at least " + gigabytes(raw / k_best_compression) + " even at " +
-                             std::to_string(k_best_compression) + ":1 compression, but " + out.parent_path().string() +
-                             " has " + gigabytes(have) +
-                             " free; bake a --region or fewer --mips, split it with --shard onto several disks, or pass "
-                             "--ignore-free-space",
-                    2);
-    }
-  }
-  auto plan = bake_plan(vt, region, pyramid);
-  if (!plan) return fail(cmd, "--region/--mips: " + plan.error().message, 2);
 
   const std::string strategy_name =
       !a.mip_strategy.empty() ? a.mip_strategy : pyramid == StorePyramid::filtered ? "direct" : "prefiltered";
@@ -182,6 +179,11 @@ int run_bake(const BakeArgs& a) {
   if (!producers) return fail(cmd, producers.error().message, 1);
   StoreDesc desc = producers.value()->store_desc(a.level);
   desc.pyramid = pyramid;
+  if (!a.ignore_free_space) {
+    if (auto why = too_big_for_disk(a.out, part.count, desc.page_bytes())) return fail(cmd, *why, 2);
+  }
+  auto plan = bake_plan(vt, region, pyramid);
+  if (!plan) return fail(cmd, "--region/--mips: " + plan.error().message, 2);
   PageSource source = producers.value()->source();
 
   const auto t0 = std::chrono::steady_clock::now();

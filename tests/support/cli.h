@@ -25,21 +25,25 @@ inline int run_terravt(const std::filesystem::path& dir, const std::string& args
   return WEXITSTATUS(status);
 }
 
+// The built-in scene with its "vt" object replaced by `vt` (JSON), written as `dir`/`name`.
+// Returns its path.
+inline std::string write_default_scene_with_vt(const std::filesystem::path& dir, const std::string& vt,
+                                               const std::string& name = "scene.json") {
+  std::ifstream in(std::string(TVT_SOURCE_DIR) + "/docs/default-scene.json");
+  std::string json((std::istreambuf_iterator<char>(in)), {});
+  const std::string key = "\"vt\": ";
+  const std::size_t at = json.find(key);
+  EXPECT_NE(at, std::string::npos);
+  if (at != std::string::npos) json.replace(at + key.size(), json.find('}', at) + 1 - at - key.size(), vt);
+  const std::string scene = (dir / name).string();
+  std::ofstream(scene) << json;
+  return scene;
+}
+
 // The built-in scene at V = 2^10 (85 pages over mips 0..3 of 128-texel pages), what the CLI
 // tests bake and render in seconds, written as `dir`/scene.json. Returns its path.
 inline std::string write_small_default_scene(const std::filesystem::path& dir) {
-  std::ifstream in(std::string(TVT_SOURCE_DIR) + "/docs/default-scene.json");
-  std::string json((std::istreambuf_iterator<char>(in)), {});
-  const std::string key = "\"log2_size\": ";
-  const std::size_t at = json.find(key);
-  EXPECT_NE(at, std::string::npos);
-  if (at != std::string::npos) {
-    const std::size_t digits = json.find_first_not_of("0123456789", at + key.size());
-    json.replace(at + key.size(), digits - at - key.size(), "10");
-  }
-  const std::string scene = (dir / "scene.json").string();
-  std::ofstream(scene) << json;
-  return scene;
+  return write_default_scene_with_vt(dir, R"({"log2_size": 10, "page_texels": 128, "border_texels": 4})");
 }
 
 }  // namespace tvt::test
