@@ -369,7 +369,7 @@ namespace {
 // The statistics block that follows the mip chain (TVT_MATERIAL_STATS_WORDS, read by the
 // prefiltered strategy). Level l: the mean over level-l texels of the variance of A, and of
 // its covariance with R, G, B, within the level-0 texels under each: E[A X] - E[mean_A mean_X]
-// with exact (unrounded) block means, so level 0 is all zeros. Then the FBPB words.
+// with exact (unrounded) block means, so level 0 is all zeros. Then the features' mean size.
 void append_material_stats(const MaterialAssets& a, std::vector<uint32_t>& words) {
   std::array<float, gpu::TVT_MATERIAL_STATS_WORDS> stats{};
   const ImageRGBA8& top = a.albedo.mips.front();
@@ -405,31 +405,65 @@ void append_material_stats(const MaterialAssets& a, std::vector<uint32_t>& words
       mean = std::move(next);
     }
   }
-  if (a.meta && !a.meta->texels.empty()) {
-    double features = 0.0, soft = 0.0;
-    glm::dvec4 all(0.0), inside(0.0);  // colour sums over every texel and over feature texels
-    const bool same_size = a.meta->resolution == res && a.meta->texels.size() == size_t(res) * size_t(res);
-    for (size_t i = 0; i < a.meta->texels.size(); ++i) {
-      const MetaTexel& t = a.meta->texels[i];
-      glm::dvec4 colour(0.0);
-      if (same_size) {
-        const uint8_t* c = &top.texels[4 * i];
-        colour = glm::dvec4(c[0], c[1], c[2], c[3]) / 255.0;
-      }
-      all += colour;
-      if (t.d) {
-        features += 1.0;
-        soft += t.f / 255.0;
-        inside += colour;
-      }
-    }
-    const double count = double(a.meta->texels.size());
-    stats[gpu::TVT_STATS_FEATURE_FRACTION] = float(features / count);
-    stats[gpu::TVT_STATS_FEATURE_SOFT] = features > 0.0 ? float(soft / features) : 0.0f;
-    if (features > 0.0 && same_size)
-      for (int c = 0; c < 4; ++c) stats[size_t(gpu::TVT_STATS_FEATURE_COLOUR + c)] = float(inside[c] / features - all[c] / count);
+  if (a.meta && a.meta->feature_count > 0) {
+    size_t feature_texels = 0;
+    for (const MetaTexel& t : a.meta->texels) feature_texels += t.d ? 1 : 0;
+    if (feature_texels > 0)
+      stats[gpu::TVT_STATS_FEATURE_LOG2_SIZE] = float(0.5 * std::log2(double(feature_texels) / double(a.meta->feature_count)));
   }
   for (float f : stats) words.push_back(std::bit_cast<uint32_t>(f));
+}
+
+uint32_t unorm16(double v) { return uint32_t(std::lround(std::clamp(v, 0.0, 1.0) * 65535.0)); }
+uint32_t snorm8(double v) { return uint32_t(uint8_t(int8_t(std::lround(std::clamp(v, -1.0, 1.0) * 127.0)))); }
+
+// The feature statistics chain after the level-0 meta words (compose_types.h,
+// tvt_meta_chain_offset): per level-l texel, over the level-0 texels under it, the feature
+// fraction D, the mean f of its feature texels and D * (feature colour mean - colour mean),
+// from exact block sums. The colour is the albedo's level 0 (zero moment if its size differs).
+void append_feature_chain(const MetaTexture& meta, const ImageRGBA8& albedo, std::vector<uint32_t>& words) {
+  const int res = meta.resolution;
+  if (res <= 1 || meta.texels.size() != size_t(res) * size_t(res)) return;
+  const bool colour = albedo.width == res && albedo.height == res;
+  // Per texel of the current level: sums over the level-0 texels under it, as means.
+  struct Sums {
+    double feature = 0.0, soft = 0.0;
+    glm::dvec4 colour{0.0}, feature_colour{0.0};
+  };
+  std::vector<Sums> level(meta.texels.size());
+  for (size_t i = 0; i < level.size(); ++i) {
+    const MetaTexel& t = meta.texels[i];
+    Sums& s = level[i];
+    if (colour) {
+      const uint8_t* c = &albedo.texels[4 * i];
+      s.colour = glm::dvec4(c[0], c[1], c[2], c[3]) / 255.0;
+    }
+    if (t.d) {
+      s.feature = 1.0;
+      s.soft = t.f / 255.0;
+      s.feature_colour = s.colour;
+    }
+  }
+  for (int r = res / 2; r >= 1; r /= 2) {
+    std::vector<Sums> next(size_t(r) * size_t(r));
+    const size_t w2 = size_t(2 * r);
+    for (int y = 0; y < r; ++y)
+      for (int x = 0; x < r; ++x) {
+        Sums& o = next[size_t(y) * size_t(r) + size_t(x)];
+        for (int k = 0; k < 4; ++k) {
+          const Sums& c = level[size_t(2 * y + (k >> 1)) * w2 + size_t(2 * x + (k & 1))];
+          o.feature += 0.25 * c.feature;
+          o.soft += 0.25 * c.soft;
+          o.colour += 0.25 * c.colour;
+          o.feature_colour += 0.25 * c.feature_colour;
+        }
+        const double mean_f = o.feature > 0.0 ? o.soft / o.feature : 0.0;
+        words.push_back(unorm16(o.feature) | unorm16(mean_f) << 16);
+        const glm::dvec4 moment = (o.feature_colour - o.feature * o.colour) * double(gpu::TVT_META_MOMENT_SCALE);
+        words.push_back(snorm8(moment.r) | snorm8(moment.g) << 8 | snorm8(moment.b) << 16 | snorm8(moment.a) << 24);
+      }
+    level = std::move(next);
+  }
 }
 
 }  // namespace
@@ -454,6 +488,7 @@ MaterialWords pack_material(const MaterialAssets& a) {
       w.meta.push_back(uint32_t(uint16_t(t.dx)) | uint32_t(uint16_t(t.dy)) << 16);
       w.meta.push_back(uint32_t(t.d) | uint32_t(t.f) << 8 | uint32_t(t.variation) << 16);
     }
+    append_feature_chain(*a.meta, a.albedo.mips.front(), w.meta);
   }
   return w;
 }

@@ -39,8 +39,9 @@ struct MaterialAssets {
 };
 
 // A material in the flat form the compositors read (PackedScene): the albedo mips as RGBA8
-// words r | g<<8 | b<<16 | a<<24, level 0 first, and the meta-texture as two words per texel,
-// (dx & 0xffff) | dy<<16 and d | f<<8 | v<<16 (empty without one).
+// words r | g<<8 | b<<16 | a<<24, level 0 first, then the statistics block; the meta-texture as
+// two words per texel, (dx & 0xffff) | dy<<16 and d | f<<8 | v<<16, then its feature statistics
+// chain (tvt_meta_block_texels in all; empty without a meta-texture).
 struct MaterialWords {
   int resolution = 0;
   int mip_count = 0;

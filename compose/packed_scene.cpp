@@ -48,7 +48,7 @@ struct PackedScene::Cache {
       return make_error(source_path + ": /materials/" + std::to_string(n) +
                         "/fbpb: the meta-texture has no features, but the scene was laid out expecting some "
                         "(give a meta-texture or mask with features, or use mode blendmap/dpt)");
-    if (!w.has_meta) out.zero_meta.assign(2 * size_t(g.resolution) * size_t(g.resolution), 0u);
+    if (!w.has_meta) out.zero_meta.assign(2 * size_t(gpu::tvt_meta_block_texels(uint32_t(g.resolution))), 0u);
     return out;
   }
 };
@@ -248,7 +248,7 @@ Result<PackedScene> pack_scene(const SceneAssets& assets, const ComposeOptions& 
     const bool has_features = info.meta && (!info.features_known || info.feature_count > 0);
     if (has_features) {
       g.meta_offset = uint32_t(out.meta_words / 2);
-      out.meta_words += 2 * size_t(g.resolution) * size_t(g.resolution);
+      out.meta_words += 2 * size_t(gpu::tvt_meta_block_texels(uint32_t(g.resolution)));
     }
     // Effective mode: the override applies to every layer above the base.
     Mode mode = (n > 0 && options.method) ? *options.method : md.mode;

@@ -172,6 +172,90 @@ struct Ctx {
     return a * (1 - t) + bilinear(m, l1, u, v) * t;
   }
 
+  // Feature statistics of one texel of material m's chain (compose_types.h): D, mean f, and
+  // the colour moment D (feature colour - colour). Level 0 is the meta texel itself.
+  struct FeatureStats {
+    double fraction = 0.0, soft = 0.0;
+    glm::dvec4 moment{0.0};
+    FeatureStats& operator+=(const FeatureStats& o) {
+      fraction += o.fraction;
+      soft += o.soft;
+      moment += o.moment;
+      return *this;
+    }
+    FeatureStats operator*(double k) const { return {fraction * k, soft * k, moment * k}; }
+  };
+  FeatureStats feature_texel(const gpu::TvtMaterial& m, int level, int64_t x, int64_t y) const {
+    const std::span<const uint32_t> meta = s.meta(index_of(m));
+    const uint32_t res = uint32_t(m.resolution), rl = res >> level;
+    const size_t base = level == 0 ? 0 : gpu::tvt_meta_chain_offset(res, uint32_t(level));
+    const size_t i = base + size_t(tvt_floor_mod(y, rl) * rl + tvt_floor_mod(x, rl));
+    const uint32_t w0 = meta[2 * i], w1 = meta[2 * i + 1];
+    FeatureStats t;
+    if (level == 0) {
+      t.fraction = (w1 & 0xffu) != 0 ? 1.0 : 0.0;
+      t.soft = t.fraction * double((w1 >> 8) & 0xffu) / 255.0;
+      return t;
+    }
+    t.fraction = double(w0 & 0xffffu) / 65535.0;
+    t.soft = double(w0 >> 16) / 65535.0;
+    for (int c = 0; c < 4; ++c)
+      t.moment[c] = std::clamp(double(int8_t(uint8_t(w1 >> (8 * c)))) / 127.0, -1.0, 1.0) / double(gpu::TVT_META_MOMENT_SCALE);
+    return t;
+  }
+  // The chain at tile-local material texel (u, v) and material LOD `lod`, read trilinearly as the
+  // texture is (compose_sample.glsl feature_stats).
+  FeatureStats feature_stats(const gpu::TvtMaterial& m, double u, double v, double lod) const {
+    const double l = std::clamp(lod, 0.0, double(m.mip_count - 1));
+    const int l0 = int(std::floor(l));
+    const int l1 = std::min(l0 + 1, m.mip_count - 1);
+    const double t = l - l0;
+    auto bilerp = [&](int level) {
+      const double scale = std::ldexp(1.0, -level);
+      const double ul = u * scale - 0.5, vl = v * scale - 0.5;
+      const double fi = std::floor(ul), fj = std::floor(vl);
+      const double fx = ul - fi, fy = vl - fj;
+      const int64_t i = int64_t(fi), j = int64_t(fj);
+      FeatureStats r = feature_texel(m, level, i, j) * ((1 - fx) * (1 - fy));
+      r += feature_texel(m, level, i + 1, j) * (fx * (1 - fy));
+      r += feature_texel(m, level, i, j + 1) * ((1 - fx) * fy);
+      r += feature_texel(m, level, i + 1, j + 1) * (fx * fy);
+      return r;
+    };
+    FeatureStats a = bilerp(l0);
+    if (t <= 0.0 || l1 == l0) return a;
+    a = a * (1 - t);
+    a += bilerp(l1) * t;
+    return a;
+  }
+
+  // The feature at global material texel (gx, gy): its mask d, soft f, the weight p at its
+  // centroid (cx, cy) (every texel of a feature shares it; `plain` off features) and whether it
+  // is visible, eq 3.1: sgn(floor(p Cf / r)).
+  struct Feature {
+    double d = 0.0, f = 0.0, p = 0.0;
+    int64_t cx = 0, cy = 0;
+    bool visible = false;
+  };
+  Feature feature_at(const gpu::TvtMaterial& m, int64_t gx, int64_t gy, double plain) const {
+    const int64_t R = m.resolution;
+    const std::span<const uint32_t> meta = s.meta(index_of(m));
+    const size_t mi = size_t(tvt_floor_mod(gy, R) * R + tvt_floor_mod(gx, R));
+    const uint32_t w0 = meta[2 * mi], w1 = meta[2 * mi + 1];
+    Feature ft;
+    ft.d = double(w1 & 0xffu);
+    ft.f = double((w1 >> 8) & 0xffu) / 255.0;
+    // Centroid in global material texels: unique per feature instance over the terrain.
+    ft.cx = gx + int16_t(w0 & 0xffffu);
+    ft.cy = gy + int16_t(w0 >> 16);
+    const int64_t cx_fp = tvt_floor_div((2 * ft.cx + 1) * m.period_fp, 2 * R);
+    const int64_t cy_fp = tvt_floor_div((2 * ft.cy + 1) * m.period_fp, 2 * R);
+    ft.p = ft.d > 0.0 ? weight(m.weight_layer, cx_fp, cy_fp) : plain;
+    const double r = gpu::tvt_rand01(gpu::tvt_hash_coord(ft.cx, ft.cy, m.fbpb_salt));
+    ft.visible = ft.d > 0.0 && ft.p > 0.0 && r <= ft.p * double(m.cf);
+    return ft;
+  }
+
   // The statistics block word `i` of material m (TVT_MATERIAL_STATS_WORDS).
   double stat(const gpu::TvtMaterial& m, int i) const {
     const size_t r = size_t(m.resolution);
@@ -365,7 +449,8 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
     const glm::dvec4 a_stats = prefiltered ? c.a_stats(m, lod) : glm::dvec4(0.0);
     double dev = 0.0;
     bool dev_height = false;  // the layer's height is its A: A's own deviation shifts it too
-    double feature_shift = 0.0;  // prefiltered FBPB: weight of the features' colour offset
+    double feature_shift = 0.0;  // prefiltered FBPB: weight of the features' colour moment
+    glm::dvec4 feature_moment(0.0);
 
     if (mode == gpu::TVT_MODE_LINEAR) {
       // Bloom: weights normalised over the layers so far, boosted, clamped.
@@ -396,21 +481,46 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
       } else {
         fallback = blend_map(plain, colour.a, m.blend_sharpness);
       }
-      if (prefiltered) {
+      const double fade0 = 1.0 - ramp(c.material_lod(m, 1.0), m.fbpb_fade_lo, m.fbpb_fade_hi);
+      if (prefiltered && fade < 1.0 && fade0 > 0.0) {
         // Features smaller than the footprint: their expected w (eq 3.1) over the feature
-        // fraction D of the texture, each visible with probability min(p Cf, 1), mixed with
-        // the level-0 fallback as level 0 mixes them.
+        // fraction D of the footprint (the chain), each visible with probability min(p Cf, 1),
+        // mixed with the level-0 fallback as level 0 mixes them.
         const double nf = mode == gpu::TVT_MODE_FBPB_DPT ? non_feature : plain;
-        const double d_frac = c.stat(m, gpu::TVT_STATS_FEATURE_FRACTION), soft = c.stat(m, gpu::TVT_STATS_FEATURE_SOFT);
+        double u, v;
+        int64_t gx, gy;
+        c.material_coord(m, x_fp, u, gx);
+        c.material_coord(m, y_fp, v, gy);
+        const Ctx::FeatureStats local = c.feature_stats(m, u, v, lod);
         // w of a feature texel (visible with probability min(p Cf, 1)) and of a non-feature one.
-        const double w_feature = std::min(plain * double(m.cf), 1.0) * std::min(double(m.cm) * std::max(plain, soft), 1.0);
+        double w_feature = std::min(plain * double(m.cf), 1.0) * std::min(double(m.cm) * std::max(plain, local.soft), 1.0);
+        // While few features fall in the footprint, their own decisions: the mean w of the
+        // features under k x k points spread over it (k = 1 while a feature spans it, up to 4
+        // where 16 do), faded to the expectation as more fall in (docs/composition.md).
+        const double rel = lod - c.stat(m, gpu::TVT_STATS_FEATURE_LOG2_SIZE);
+        const double e = 1.0 - ramp(rel, 2.0, 3.0);
+        if (e > 0.0) {
+          const int k = 1 << std::clamp(int(std::ceil(rel)) + 1, 0, 2);
+          const int64_t step = std::max<int64_t>(1, std::llround(std::exp2(lod) / k));
+          double decided = 0.0;
+          int hits = 0;
+          for (int j = 0; j < k; ++j)
+            for (int i = 0; i < k; ++i) {
+              const Ctx::Feature ft =
+                  c.feature_at(m, gx + (((2 * i + 1 - k) * step) >> 1), gy + (((2 * j + 1 - k) * step) >> 1), plain);
+              if (ft.d <= 0.0) continue;
+              decided += ft.visible ? std::min(double(m.cm) * std::max(ft.p, local.soft), 1.0) : 0.0;
+              ++hits;
+            }
+          if (hits > 0) w_feature = e * decided / hits + (1.0 - e) * w_feature;
+        }
         const double w_ground = std::min(nf * double(m.cn), 1.0);
-        const double expected = d_frac * w_feature + (1.0 - d_frac) * w_ground;
-        const double fade0 = 1.0 - ramp(c.material_lod(m, 1.0), m.fbpb_fade_lo, m.fbpb_fade_hi);
+        const double expected = local.fraction * w_feature + (1.0 - local.fraction) * w_ground;
         fallback = fade0 * expected + (1.0 - fade0) * fallback;
         // E[b colour] - E[b] mean: feature texels (their own mean colour) take w_F, the others
-        // w_N, so the shift is D (w_F - w_N) times the features' colour offset.
-        feature_shift = (1.0 - fade) * fade0 * d_frac * (w_feature - w_ground);
+        // w_N, so the shift is (w_F - w_N) times the moment D (feature colour mean - mean).
+        feature_shift = (1.0 - fade) * fade0 * (w_feature - w_ground);
+        feature_moment = local.moment;
       }
       double w = 0.0;
       if (fade > 0.0) {
@@ -421,18 +531,11 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
         c.material_coord(m, y_fp, v, gy);
         const int64_t lx = tvt_floor_mod(gx, R), ly = tvt_floor_mod(gy, R);
         const std::span<const uint32_t> meta = scene.meta(c.index_of(m));
-        const size_t mi = size_t(ly * R + lx);
-        const uint32_t w0 = meta[2 * mi], w1 = meta[2 * mi + 1];
-        const int64_t dx = int16_t(w0 & 0xffffu), dy = int16_t(w0 >> 16);
-        double d = double(w1 & 0xffu);
-        const double f = double((w1 >> 8) & 0xffu) / 255.0;
-        // Centroid in global material texels: unique per feature instance over the terrain.
-        const int64_t cx = gx + dx, cy = gy + dy;
-        const int64_t cx_fp = tvt_floor_div((2 * cx + 1) * m.period_fp, 2 * R);
-        const int64_t cy_fp = tvt_floor_div((2 * cy + 1) * m.period_fp, 2 * R);
-        const double pw = d > 0.0 ? c.weight(m.weight_layer, cx_fp, cy_fp) : plain;  // all texels of a feature share p
-        const double r = gpu::tvt_rand01(gpu::tvt_hash_coord(cx, cy, m.fbpb_salt));
-        visible = d > 0.0 && pw > 0.0 && r <= pw * double(m.cf);  // eq 3.1: sgn(floor(p*Cf / r))
+        const Ctx::Feature ft = c.feature_at(m, gx, gy, plain);
+        double d = ft.d;
+        const double f = ft.f, pw = ft.p;
+        const int64_t cx = ft.cx, cy = ft.cy;
+        visible = ft.visible;
         if (visible && pw < 1.0) {
           // Algorithm 1: variation map at the material uv plus a per-feature random offset.
           const uint32_t hv = gpu::tvt_hash_coord(cx, cy, m.variation_salt);
@@ -463,8 +566,7 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
       result = glm::dvec4(glm::dvec3(result) + beta * dev, result.a + (dev_height ? dev : 0.0));
     }
     if (prefiltered && bn > 0.0 && feature_shift != 0.0) {
-      glm::dvec4 offset;
-      for (int i = 0; i < 4; ++i) offset[i] = c.stat(m, gpu::TVT_STATS_FEATURE_COLOUR + i);
+      glm::dvec4 offset = feature_moment;
       if (mode == gpu::TVT_MODE_FBPB_DPT) offset.a = 0.0;  // its height is DPT's, not A
       result += offset * feature_shift;
     }

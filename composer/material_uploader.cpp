@@ -38,7 +38,7 @@ MaterialUploader::MaterialUploader(vk::Context& context, const PackedScene& scen
     mat.texels = {m.texel_offset, at - m.texel_offset};
     TVT_CHECK(at <= scene.texel_words);
     if (m.meta_offset != gpu::TVT_NO_META) {
-      mat.meta = {2 * size_t(m.meta_offset), 2 * size_t(m.resolution) * size_t(m.resolution)};
+      mat.meta = {2 * size_t(m.meta_offset), 2 * size_t(gpu::tvt_meta_block_texels(uint32_t(m.resolution)))};
       TVT_CHECK(mat.meta.first + mat.meta.count <= scene.meta_words);
     }
     mat.meta_resident = mat.meta.count == 0;

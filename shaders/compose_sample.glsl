@@ -200,6 +200,73 @@ vec4 material_at(int n, int64_t x_fp, int64_t y_fp, float lod, out int64_t gx, o
   return sample_material(n, float(gx & mask) + fx, float(gy & mask) + fy, lod);
 }
 
+// One texel of material n's feature statistics chain (compose_types.h) as (D, mean f) and the
+// colour moment; level 0 is the meta texel itself (reference_compositor.cpp feature_texel).
+void feature_texel(int n, int level, int x, int y, out vec2 df, out vec4 moment) {
+  const uint res = uint(P.materials[n].resolution), rl = res >> uint(level);
+  const uint base = level == 0 ? 0u : tvt_meta_chain_offset(res, uint(level));
+  const uint i = P.materials[n].meta_offset + base + (uint(y) & (rl - 1u)) * rl + (uint(x) & (rl - 1u));
+  const uint w0 = meta_texels[2u * i], w1 = meta_texels[2u * i + 1u];
+  if (level == 0) {
+    const float d = (w1 & 0xffu) != 0u ? 1.0 : 0.0;
+    df = vec2(d, d * float((w1 >> 8u) & 0xffu) / 255.0);
+    moment = vec4(0.0);
+    return;
+  }
+  df = unpackUnorm2x16(w0);
+  moment = unpackSnorm4x8(w1) / TVT_META_MOMENT_SCALE;
+}
+void feature_bilinear(int n, int level, float u, float v, out vec2 df, out vec4 moment) {
+  const float scale = exp2(-float(level));
+  const float ul = u * scale - 0.5, vl = v * scale - 0.5;
+  const float fi = floor(ul), fj = floor(vl);
+  const float fx = ul - fi, fy = vl - fj;
+  const int i = int(fi), j = int(fj);
+  vec2 d00, d10, d01, d11;
+  vec4 m00, m10, m01, m11;
+  feature_texel(n, level, i, j, d00, m00);
+  feature_texel(n, level, i + 1, j, d10, m10);
+  feature_texel(n, level, i, j + 1, d01, m01);
+  feature_texel(n, level, i + 1, j + 1, d11, m11);
+  df = mix(mix(d00, d10, fx), mix(d01, d11, fx), fy);
+  moment = mix(mix(m00, m10, fx), mix(m01, m11, fx), fy);
+}
+// The chain at tile-local material texel (u, v) and material LOD `lod`, trilinear as the texture.
+void feature_stats(int n, float u, float v, float lod, out vec2 df, out vec4 moment) {
+  const float l = clamp(lod, 0.0, float(P.materials[n].mip_count - 1));
+  const int l0 = int(floor(l));
+  const int l1 = min(l0 + 1, P.materials[n].mip_count - 1);
+  const float t = l - float(l0);
+  feature_bilinear(n, l0, u, v, df, moment);
+  if (t <= 0.0 || l1 == l0) return;
+  vec2 df1;
+  vec4 moment1;
+  feature_bilinear(n, l1, u, v, df1, moment1);
+  df = mix(df, df1, t);
+  moment = mix(moment, moment1, t);
+}
+
+// The feature at global material texel (gx, gy): its mask d, soft f, the weight p at its
+// centroid (cx, cy) (`plain` off features) and whether it is visible (eq 3.1);
+// reference_compositor.cpp feature_at.
+bool feature_at(int n, int64_t gx, int64_t gy, float plain, out float d, out float f, out float pw, out int64_t cx,
+                out int64_t cy) {
+  const int64_t R = int64_t(P.materials[n].resolution);
+  const uint mi = P.materials[n].meta_offset + uint((gy & (R - 1)) * R + (gx & (R - 1)));
+  const uint w0 = meta_texels[2u * mi], w1 = meta_texels[2u * mi + 1u];
+  d = float(w1 & 0xffu);
+  f = float((w1 >> 8u) & 0xffu) / 255.0;
+  cx = gx + int64_t(bitfieldExtract(int(w0), 0, 16));
+  cy = gy + int64_t(bitfieldExtract(int(w0), 16, 16));
+  const int64_t period = P.materials[n].period_fp;
+  const int shift = P.materials[n].log2_resolution + 1;  // / 2R, a power of two
+  const int64_t cx_fp = ((2 * cx + 1) * period) >> shift;
+  const int64_t cy_fp = ((2 * cy + 1) * period) >> shift;
+  pw = d > 0.0 ? weight_at(P.materials[n].weight_layer, cx_fp, cy_fp) : plain;
+  const float r = tvt_rand01(tvt_hash_coord(cx, cy, P.materials[n].fbpb_salt));
+  return d > 0.0 && pw > 0.0 && r <= pw * P.materials[n].cf;
+}
+
 // E[bilerp(m)^W] (coefficients expect) and E[bilerp(m)^(2W)] (expect_sq) of DPT layer k of
 // material n for corner masks set with probability q.
 float patch_expectation(int n, int k, float q) {
@@ -343,7 +410,8 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
     const vec4 a_stats = prefiltered ? material_a_stats(n, lod) : vec4(0.0);
     float dev = 0.0;
     bool dev_height = false;
-    float feature_shift = 0.0;
+    float feature_shift = 0.0;  // prefiltered FBPB: weight of the features' colour moment
+    vec4 feature_moment = vec4(0.0);
     const float s = P.materials[n].blend_sharpness;
 
     if (mode == TVT_MODE_LINEAR) {
@@ -369,34 +437,48 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
       if (mode == TVT_MODE_FBPB_DPT) fallback = non_feature;
       else if (prefiltered) blend_map_expected(plain, colour.a, a_stats.x, s, fallback, unused);
       else fallback = blend_map(plain, colour.a, s);
-      if (prefiltered) {
+      const float fade0 = 1.0 - ramp(material_lod(n, 1.0), P.materials[n].fbpb_fade_lo, P.materials[n].fbpb_fade_hi);
+      if (prefiltered && fade < 1.0 && fade0 > 0.0) {
         const float nf = mode == TVT_MODE_FBPB_DPT ? non_feature : plain;
-        const float d_frac = material_stat(n, TVT_STATS_FEATURE_FRACTION), soft = material_stat(n, TVT_STATS_FEATURE_SOFT);
-        const float w_feature = min(plain * P.materials[n].cf, 1.0) * min(P.materials[n].cm * max(plain, soft), 1.0);
+        int64_t cgx, cgy;
+        float cfx, cfy;
+        material_texel_coord(n, x_fp, cgx, cfx);
+        material_texel_coord(n, y_fp, cgy, cfy);
+        const int64_t mask = int64_t(P.materials[n].resolution - 1);
+        vec2 df;
+        feature_stats(n, float(cgx & mask) + cfx, float(cgy & mask) + cfy, lod, df, feature_moment);
+        float w_feature = min(plain * P.materials[n].cf, 1.0) * min(P.materials[n].cm * max(plain, df.y), 1.0);
+        const float rel = lod - material_stat(n, TVT_STATS_FEATURE_LOG2_SIZE);
+        const float e = 1.0 - ramp(rel, 2.0, 3.0);
+        if (e > 0.0) {
+          const int k = 1 << clamp(int(ceil(rel)) + 1, 0, 2);
+          const int64_t step = int64_t(max(1.0, round(exp2(lod) / float(k))));
+          float decided = 0.0;
+          int hits = 0;
+          for (int j = 0; j < k; ++j)
+            for (int i = 0; i < k; ++i) {
+              float fd, ff, fp;
+              int64_t fcx, fcy;
+              const bool fvisible = feature_at(n, gx + ((int64_t(2 * i + 1 - k) * step) >> 1),
+                                               gy + ((int64_t(2 * j + 1 - k) * step) >> 1), plain, fd, ff, fp, fcx, fcy);
+              if (fd <= 0.0) continue;
+              decided += fvisible ? min(P.materials[n].cm * max(fp, df.y), 1.0) : 0.0;
+              ++hits;
+            }
+          if (hits > 0) w_feature = e * decided / float(hits) + (1.0 - e) * w_feature;
+        }
         const float w_ground = min(nf * P.materials[n].cn, 1.0);
-        const float expected = d_frac * w_feature + (1.0 - d_frac) * w_ground;
-        const float fade0 = 1.0 - ramp(material_lod(n, 1.0), P.materials[n].fbpb_fade_lo, P.materials[n].fbpb_fade_hi);
+        const float expected = df.x * w_feature + (1.0 - df.x) * w_ground;
         fallback = fade0 * expected + (1.0 - fade0) * fallback;
-        feature_shift = (1.0 - fade) * fade0 * d_frac * (w_feature - w_ground);
+        feature_shift = (1.0 - fade) * fade0 * (w_feature - w_ground);
       }
       float w = 0.0;
       if (fade > 0.0) {
         const int64_t R = int64_t(P.materials[n].resolution);
         const int64_t lx = gx & (R - 1), ly = gy & (R - 1);
-        const uint mi = P.materials[n].meta_offset + uint(ly * R + lx);
-        const uint w0 = meta_texels[2u * mi], w1 = meta_texels[2u * mi + 1u];
-        const int64_t dx = int64_t(bitfieldExtract(int(w0), 0, 16));
-        const int64_t dy = int64_t(bitfieldExtract(int(w0), 16, 16));
-        float d = float(w1 & 0xffu);
-        const float f = float((w1 >> 8u) & 0xffu) / 255.0;
-        const int64_t cx = gx + dx, cy = gy + dy;
-        const int64_t period = P.materials[n].period_fp;
-        const int shift = P.materials[n].log2_resolution + 1;  // / 2R, a power of two
-        const int64_t cx_fp = ((2 * cx + 1) * period) >> shift;
-        const int64_t cy_fp = ((2 * cy + 1) * period) >> shift;
-        const float pw = d > 0.0 ? weight_at(P.materials[n].weight_layer, cx_fp, cy_fp) : plain;
-        const float r = tvt_rand01(tvt_hash_coord(cx, cy, P.materials[n].fbpb_salt));
-        visible = d > 0.0 && pw > 0.0 && r <= pw * P.materials[n].cf;
+        float d, f, pw;
+        int64_t cx, cy;
+        visible = feature_at(n, gx, gy, plain, d, f, pw, cx, cy);
         if (visible && pw < 1.0) {
           const uint hv = tvt_hash_coord(cx, cy, P.materials[n].variation_salt);
           const int64_t vx = (lx + int64_t(hv & 0xffffu)) & (R - 1);
@@ -422,9 +504,8 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
     if (prefiltered && bn > 0.0 && dev != 0.0 && a_stats.x > 1e-6)
       result += vec4(a_stats.yzw / a_stats.x * dev, dev_height ? dev : 0.0);
     if (prefiltered && bn > 0.0 && feature_shift != 0.0) {
-      const float offset_a = mode == TVT_MODE_FBPB_DPT ? 0.0 : material_stat(n, TVT_STATS_FEATURE_COLOUR + 3);
-      result += vec4(material_stat(n, TVT_STATS_FEATURE_COLOUR), material_stat(n, TVT_STATS_FEATURE_COLOUR + 1),
-                     material_stat(n, TVT_STATS_FEATURE_COLOUR + 2), offset_a) * feature_shift;
+      if (mode == TVT_MODE_FBPB_DPT) feature_moment.a = 0.0;  // its height is DPT's, not A
+      result += feature_moment * feature_shift;
     }
   }
   return vec4(clamp01(result.r), clamp01(result.g), clamp01(result.b), clamp01(result.a));

@@ -39,7 +39,8 @@ const SceneAssets& default_assets() {
 }
 
 // Bytes the uploader copies for `needs`, from the packed layout: the texture levels from the
-// finest needed to the coarsest, the meta-texture (two words per texel), the weight layer.
+// finest needed to the coarsest, the meta block (two words per texel of the meta-texture and
+// of its feature statistics chain), the weight layer.
 uint64_t bytes_of(const PackedScene& s, const MaterialNeeds& needs) {
   uint64_t bytes = 0;
   for (int n = 0; n < s.params.material_count; ++n) {
@@ -48,7 +49,8 @@ uint64_t bytes_of(const PackedScene& s, const MaterialNeeds& needs) {
     for (int l = needs.finest_level[size_t(n)]; l < m.mip_count; ++l)
       bytes += 4ull * uint64_t(m.resolution >> l) * uint64_t(m.resolution >> l);
     bytes += 4ull * uint64_t(gpu::TVT_MATERIAL_STATS_WORDS);  // the statistics, with the 1x1 level
-    if ((needs.meta_mask & (1u << n)) && m.meta_offset != gpu::TVT_NO_META) bytes += 8ull * uint64_t(m.resolution) * uint64_t(m.resolution);
+    if ((needs.meta_mask & (1u << n)) && m.meta_offset != gpu::TVT_NO_META)
+      bytes += 8ull * uint64_t(gpu::tvt_meta_block_texels(uint32_t(m.resolution)));
     bytes += 4ull * uint64_t(s.params.weight_width) * uint64_t(s.params.weight_height);
   }
   return bytes;

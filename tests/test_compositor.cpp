@@ -495,6 +495,97 @@ TEST(Prefiltered, ExtremesAreDefinedAndMonotoneInP) {
         }
 }
 
+namespace {
+
+// An FBPB material of 64 texels a tile (period 64 level-0 texels: material LOD = mip) with one
+// 33 x 33 square feature a tile, feature texels (0, 200, 0) and ground (0, 40, 200); features
+// exact up to material LOD 1, their expectation from LOD 2.
+SceneAssets big_feature_scene(float p) {
+  auto a = test::make_synthetic_assets({k_base, {{0, 40, 200, 128}, p, Mode::Fbpb, 64}});
+  MetaTexture meta = test::square_feature_meta(64, 32, 32, 32);
+  ImageRGBA8 albedo(64, 64);
+  for (int y = 0; y < 64; ++y)
+    for (int x = 0; x < 64; ++x) {
+      uint8_t* t = albedo.at(x, y);
+      const bool feature = meta.at(x, y).d != 0;
+      t[0] = 0, t[1] = feature ? 200 : 40, t[2] = feature ? 0 : 200, t[3] = 128;
+    }
+  a.materials->edit(1).albedo = build_mip_chain(albedo);
+  a.materials->edit(1).meta = std::move(meta);
+  a.desc.materials[1].has_fbpb = true;
+  a.desc.materials[1].fbpb.fade_lod_lo = 0.0;
+  a.desc.materials[1].fbpb.fade_lod_hi = 1.0;
+  return a;
+}
+
+}  // namespace
+
+// The meta block's feature statistics chain: every level-l texel holds the feature fraction,
+// the mean f of its feature texels and D (feature colour mean - colour mean) of the level-0
+// texels under it, to the words' rounding.
+TEST(Prefiltered, FeatureChainHoldsEachBlocksFractionAndColourMoment) {
+  const SceneAssets a = big_feature_scene(0.5f);
+  const std::shared_ptr<const MaterialAssets> held = a.materials->get(1).value();
+  const MaterialAssets& m = *held;
+  const MaterialWords w = pack_material(m);
+  const uint32_t res = 64;
+  ASSERT_EQ(w.meta.size(), 2 * size_t(gpu::tvt_meta_block_texels(res)));
+  const ImageRGBA8& albedo = m.albedo.mips.front();
+  for (uint32_t level = 1; (res >> level) >= 1; ++level) {
+    const uint32_t rl = res >> level, side = 1u << level;
+    for (uint32_t by = 0; by < rl; ++by)
+      for (uint32_t bx = 0; bx < rl; ++bx) {
+        double features = 0, soft = 0;
+        glm::dvec4 all(0.0), inside(0.0);
+        for (uint32_t y = by * side; y < (by + 1) * side; ++y)
+          for (uint32_t x = bx * side; x < (bx + 1) * side; ++x) {
+            const uint8_t* t = albedo.at(int(x), int(y));
+            const glm::dvec4 c = glm::dvec4(t[0], t[1], t[2], t[3]) / 255.0;
+            all += c;
+            if (m.meta->at(int(x), int(y)).d) {
+              features += 1, soft += m.meta->at(int(x), int(y)).f / 255.0, inside += c;
+            }
+          }
+        const double n = double(side) * double(side);
+        const size_t i = gpu::tvt_meta_chain_offset(res, level) + by * rl + bx;
+        const uint32_t w0 = w.meta[2 * i], w1 = w.meta[2 * i + 1];
+        const std::string where = "level " + std::to_string(level) + " texel " + std::to_string(bx) + "," + std::to_string(by);
+        EXPECT_NEAR((w0 & 0xffffu) / 65535.0, features / n, 0.6 / 65535) << where;
+        EXPECT_NEAR((w0 >> 16) / 65535.0, features > 0 ? soft / features : 0.0, 0.6 / 65535) << where;
+        for (int c = 0; c < 4; ++c) {
+          const double moment = (inside[c] - features / n * all[c]) / n;
+          EXPECT_NEAR(double(int8_t(uint8_t(w1 >> (8 * c)))) / 127.0 / gpu::TVT_META_MOMENT_SCALE, moment, 0.6 / 508) << where;
+        }
+      }
+  }
+}
+
+// Features larger than the footprint, past the end of the FBPB fade (their expectation): the
+// prefiltered texel follows what its footprint holds (this feature's decision, the local
+// feature fraction and colour), not the texture's mean feature fraction, so it lands near the
+// box filter of level 0 inside features, on the ground between them and across their edges.
+TEST(Prefiltered, FeaturesFollowWhatTheFootprintHolds) {
+  const SceneAssets a = big_feature_scene(0.5f);
+  const PackedScene direct = pack(a), pre = pack(a, prefiltered_options());
+  for (const uint32_t mip : {2u, 3u, 4u}) {
+    double err = 0, worst = 0, lowest = 1, highest = 0;
+    const int64_t n = 32, step = std::max<int64_t>(1, (int64_t(1) << (10 - mip)) / n);  // texels over the VT
+    for (int64_t y = 0; y < n; ++y)
+      for (int64_t x = 0; x < n; ++x) {
+        const glm::dvec4 truth = ground_truth_texel(direct, mip, x * step + 1, y * step + 1);
+        const glm::dvec4 got = compose_texel_reference(pre, mip, x * step + 1, y * step + 1);
+        for (int c = 0; c < 3; ++c) {
+          err += std::abs(got[c] - truth[c]) / (3 * n * n);
+          worst = std::max(worst, std::abs(got[c] - truth[c]));
+        }
+        lowest = std::min(lowest, truth.g), highest = std::max(highest, truth.g);
+      }
+    EXPECT_LT(err, 0.01) << "mip " << mip;
+    EXPECT_LT(worst, 0.2) << "mip " << mip;
+    EXPECT_GT(highest - lowest, 0.3) << "mip " << mip;  // the truth is far from uniform: features decide
+  }
+}
+
 TEST(Mips, GroundTruthIsSupersamplingAtTheLevel0Rate) {
   auto a = test::make_synthetic_assets({k_base, {{0, 250, 0, 200}, 0.5f, Mode::Dpt}});
   a.desc.materials[1].dpt.layers = {{6, 1, 1, 1, 0.5}};

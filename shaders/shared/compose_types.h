@@ -20,12 +20,25 @@ TVT_CONST int TVT_MODE_FBPB_DPT = 4;  // FBPB features over a DPT-shaped non-fea
 
 // Each material's texel words end with its statistics block, after the 1x1 mip: float bits,
 // four words per level l < 15 (the mean over level-l texels of the variance of A within the
-// level-0 texels under the texel, and of the covariances of A with R, G and B), then the
-// FBPB words (docs/composition.md, "Prefiltered mips").
-TVT_CONST int TVT_MATERIAL_STATS_WORDS = 68;
-TVT_CONST int TVT_STATS_FEATURE_FRACTION = 60;  // mean of the meta-texture's d (0 without one)
-TVT_CONST int TVT_STATS_FEATURE_SOFT = 61;      // mean of f over feature texels
-TVT_CONST int TVT_STATS_FEATURE_COLOUR = 64;    // RGBA: feature texels' mean minus all texels' mean
+// level-0 texels under the texel, and of the covariances of A with R, G and B), then log2 of the
+// FBPB features' mean size in material texels (the side of their mean area; 0 without
+// features) (docs/composition.md, "Prefiltered mips").
+TVT_CONST int TVT_MATERIAL_STATS_WORDS = 61;
+TVT_CONST int TVT_STATS_FEATURE_LOG2_SIZE = 60;
+
+// A material's meta block (meta_offset, two words a texel): its R x R level-0 meta texels, then
+// its feature statistics chain, levels 1 .. log2 R of (R >> l)^2 texels each, level l's texel
+// summing the 2^l x 2^l level-0 texels under it: word 0 the feature fraction D (low 16 bits) and
+// the mean f over its feature texels (high 16 bits), unorm; word 1 the feature colour moment
+// D * (mean feature colour - mean colour), RGBA snorm8 of TVT_META_MOMENT_SCALE times it (the
+// moment is at most 1/4 in size). Read by the prefiltered strategy's FBPB expectation.
+TVT_CONST float TVT_META_MOMENT_SCALE = 4.0;
+TVT_FN uint tvt_meta_block_texels(uint res) { return (4u * res * res - 1u) / 3u; }
+// First texel of chain level `level` >= 1, relative to meta_offset.
+TVT_FN uint tvt_meta_chain_offset(uint res, uint level) {
+  const uint above = res >> (level - 1u);
+  return res * res + (res * res - above * above) / 3u;
+}
 
 TVT_CONST int TVT_COMPOSE_GROUP = 16;  // compute workgroup edge (texels); lavapipe pays ~16 us per group
 
