@@ -205,11 +205,15 @@ TEST_F(GpuLazyMaterials, EagerCreateUploadsEverythingAtOnce) {
 
 // Coarse to fine, as a VT requests them: the top page, an ancestor of a transition page, a page
 // without the feature material, then pages with it; each call is one upload + dispatch.
+// Direct and prefiltered (whose FBPB expectation reads the meta block's feature statistics at
+// every mip, so the meta block must arrive with coarse pages too).
 TEST_F(GpuLazyMaterials, ComposedPagesAreByteIdenticalToTheEagerUploadForEveryMethod) {
   const SceneAssets& assets = default_assets();
   const uint32_t top = assets.desc.vt.mip_count() - 1;
+  for (const MipStrategy strategy : {MipStrategy{}, MipStrategy{1, true}})
   for (Method method : k_all_methods) {
-    auto packed = pack_scene(assets, options_for(method));
+    SCOPED_TRACE(to_string(strategy));
+    auto packed = pack_scene(assets, options_for(method, strategy));
     ASSERT_TRUE(packed.ok());
     const PackedScene& s = packed.value();
     const PageSets sets = find_pages(s, assets.desc.vt, s.params.material_count - 1);

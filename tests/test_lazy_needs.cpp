@@ -11,7 +11,8 @@ using namespace tvt;
 namespace {
 
 // Material 1: 16x16 texture (5 levels) repeating every `period` level-0 texels, FBPB features.
-PackedScene scene(double period, uint32_t supersample = 1, std::optional<Mode> method = std::nullopt) {
+PackedScene scene(double period, uint32_t supersample = 1, std::optional<Mode> method = std::nullopt,
+                  bool prefiltered = false) {
   test::SyntheticMaterial base{{100, 0, 0, 100}, 0.f, Mode::BlendMap};
   test::SyntheticMaterial top{{0, 200, 0, 100}, 0.5f, Mode::Fbpb};
   auto a = test::make_synthetic_assets({base, top}, 12);
@@ -21,6 +22,7 @@ PackedScene scene(double period, uint32_t supersample = 1, std::optional<Mode> m
   ComposeOptions o;
   o.supersample = supersample;
   o.method = method;
+  o.prefiltered = prefiltered;
   auto packed = pack_scene(a, o);
   TVT_CHECK(packed.ok());
   return std::move(packed.value());
@@ -55,6 +57,18 @@ TEST(LazyNeeds, MetaTextureOnlyForFbpbWhileFeaturesHaveNotFadedOut) {
   EXPECT_EQ(culler.needs(PageId{0, 0, 0}, 1u).mask, 1u);
   const PackedScene d = scene(64.0, 1, Mode::Dpt);  // the method override leaves no FBPB
   EXPECT_EQ(MaterialCuller(d).needs(PageId{0, 0, 0}, 3u).meta_mask, 0u);
+}
+
+// The prefiltered strategy's FBPB expectation reads the feature statistics chain at any LOD
+// of mips >= 1, wherever level 0 has features (its LOD below the fade's end).
+TEST(LazyNeeds, PrefilteredFbpbReadsTheMetaBlockAtEveryMipWhereLevel0HasFeatures) {
+  const PackedScene s = scene(64.0, 1, std::nullopt, true);  // level-0 lod -2
+  const MaterialCuller culler(s);
+  for (uint32_t mip = 0; mip < 12; ++mip) EXPECT_EQ(culler.needs(PageId{mip, 0, 0}, 3u).meta_mask, 2u) << mip;
+  EXPECT_EQ(culler.needs(PageId{9, 0, 0}, 1u).meta_mask, 0u);  // culled: nothing of it
+  // Level-0 lod 5 (R / T = 32): features faded out at every level, the meta block is never read.
+  const PackedScene faded = scene(0.5, 1, std::nullopt, true);
+  for (uint32_t mip = 1; mip < 12; ++mip) EXPECT_EQ(MaterialCuller(faded).needs(PageId{mip, 0, 0}, 3u).meta_mask, 0u) << mip;
 }
 
 TEST(LazyNeeds, MergeKeepsTheFinestLevelAndEveryBit) {
