@@ -172,6 +172,16 @@ vec4 hex_sample(int n, int64_t gx, float fx, int64_t gy, float fy, float lod) {
     w[k] = max(w[k] / sum - cut, 0.0);
     kept += w[k];
   }
+  // sample_material() for each tile, its level pair worked out once; the offset tile's
+  // coordinates wrap in 32 bits (the low bits of the 64-bit sum).
+  const int top = P.materials[n].mip_count - 1;
+  const float l = clamp(lod, 0.0, float(top));
+  const int l0 = int(floor(l));
+  const int l1 = min(l0 + 1, top);
+  const float t = l - float(l0);
+  const bool two_levels = t > 0.0 && l1 != l0;
+  const int wrap = P.materials[n].resolution - 1;
+  const int gx_tile = int(gx & (R - 1)), gy_tile = int(gy & (R - 1));
   vec4 linear = vec4(0.0);
   float squares = 0.0;
   for (int k = 0; k < 3; ++k) {
@@ -179,9 +189,11 @@ vec4 hex_sample(int n, int64_t gx, float fx, int64_t gy, float fy, float lod) {
     if (wk <= 0.0) continue;  // most of the plane: one or two tiles, their fetches only
     squares += wk * wk;
     const uint h = tvt_hash_coord(vx[k], vy[k], P.materials[n].hex_salt);
-    const float u = float((gx + int64_t(h & 0xffffu)) & (R - 1)) + fx;
-    const float v = float((gy + int64_t(h >> 16u)) & (R - 1)) + fy;
-    linear += wk * sample_material(n, u, v, lod);
+    const float u = float((gx_tile + int(h & 0xffffu)) & wrap) + fx;
+    const float v = float((gy_tile + int(h >> 16u)) & wrap) + fy;
+    vec4 texel = material_bilinear(n, l0, u, v);
+    if (two_levels) texel = mix(texel, material_bilinear(n, l1, u, v), t);
+    linear += wk * texel;
   }
   const vec4 mean = material_texel(n, P.materials[n].mip_count - 1, 0, 0);
   const vec4 preserved = mean + (linear - mean) / sqrt(squares);
