@@ -161,15 +161,25 @@ struct Ctx {
     return std::log2(footprint * m.resolution * 256.0 / double(m.period_fp));
   }
 
-  // Trilinear, wrapping material sample at tile-local coordinates (u, v) in [0, R).
-  glm::dvec4 trilinear(const gpu::TvtMaterial& m, double u, double v, double lod) const {
+  // The trilinear pair of levels of m at LOD `lod`: l0, l1 and the weight t of l1 (0 where only
+  // l0 is read). The texture and the feature statistics chain share it.
+  struct Levels {
+    int l0, l1;
+    double t;
+  };
+  static Levels trilinear_levels(const gpu::TvtMaterial& m, double lod) {
     const double l = std::clamp(lod, 0.0, double(m.mip_count - 1));
     const int l0 = int(std::floor(l));
     const int l1 = std::min(l0 + 1, m.mip_count - 1);
-    const double t = l - l0;
-    const glm::dvec4 a = bilinear(m, l0, u, v);
-    if (t <= 0.0 || l1 == l0) return a;
-    return a * (1 - t) + bilinear(m, l1, u, v) * t;
+    return {l0, l1, l1 == l0 ? 0.0 : l - l0};
+  }
+
+  // Trilinear, wrapping material sample at tile-local coordinates (u, v) in [0, R).
+  glm::dvec4 trilinear(const gpu::TvtMaterial& m, double u, double v, double lod) const {
+    const Levels L = trilinear_levels(m, lod);
+    const glm::dvec4 a = bilinear(m, L.l0, u, v);
+    if (L.t <= 0.0) return a;
+    return a * (1 - L.t) + bilinear(m, L.l1, u, v) * L.t;
   }
 
   // Feature statistics of one texel of material m's chain (compose_types.h): D, mean f, and
@@ -206,10 +216,7 @@ struct Ctx {
   // The chain at tile-local material texel (u, v) and material LOD `lod`, read trilinearly as the
   // texture is (compose_sample.glsl feature_stats).
   FeatureStats feature_stats(const gpu::TvtMaterial& m, double u, double v, double lod) const {
-    const double l = std::clamp(lod, 0.0, double(m.mip_count - 1));
-    const int l0 = int(std::floor(l));
-    const int l1 = std::min(l0 + 1, m.mip_count - 1);
-    const double t = l - l0;
+    const Levels L = trilinear_levels(m, lod);
     auto bilerp = [&](int level) {
       const double scale = std::ldexp(1.0, -level);
       const double ul = u * scale - 0.5, vl = v * scale - 0.5;
@@ -222,10 +229,10 @@ struct Ctx {
       r += feature_texel(m, level, i + 1, j + 1) * (fx * fy);
       return r;
     };
-    FeatureStats a = bilerp(l0);
-    if (t <= 0.0 || l1 == l0) return a;
-    a = a * (1 - t);
-    a += bilerp(l1) * t;
+    FeatureStats a = bilerp(L.l0);
+    if (L.t <= 0.0) return a;
+    a = a * (1 - L.t);
+    a += bilerp(L.l1) * L.t;
     return a;
   }
 
@@ -481,16 +488,17 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
       } else {
         fallback = blend_map(plain, colour.a, m.blend_sharpness);
       }
-      const double fade0 = 1.0 - ramp(c.material_lod(m, 1.0), m.fbpb_fade_lo, m.fbpb_fade_hi);
-      if (prefiltered && fade < 1.0 && fade0 > 0.0) {
+      // Tile-local (u, v) and global material texel of the sample (features and their chain).
+      double u, v;
+      int64_t gx, gy;
+      c.material_coord(m, x_fp, u, gx);
+      c.material_coord(m, y_fp, v, gy);
+      const double fade0 = prefiltered && fade < 1.0 ? 1.0 - ramp(c.material_lod(m, 1.0), m.fbpb_fade_lo, m.fbpb_fade_hi) : 0.0;
+      if (fade0 > 0.0) {
         // Features smaller than the footprint: their expected w (eq 3.1) over the feature
         // fraction D of the footprint (the chain), each visible with probability min(p Cf, 1),
         // mixed with the level-0 fallback as level 0 mixes them.
         const double nf = mode == gpu::TVT_MODE_FBPB_DPT ? non_feature : plain;
-        double u, v;
-        int64_t gx, gy;
-        c.material_coord(m, x_fp, u, gx);
-        c.material_coord(m, y_fp, v, gy);
         const Ctx::FeatureStats local = c.feature_stats(m, u, v, lod);
         // w of a feature texel (visible with probability min(p Cf, 1)) and of a non-feature one.
         double w_feature = std::min(plain * double(m.cf), 1.0) * std::min(double(m.cm) * std::max(plain, local.soft), 1.0);
@@ -525,10 +533,6 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
       double w = 0.0;
       if (fade > 0.0) {
         const int64_t R = m.resolution;
-        int64_t gx, gy;
-        double u, v;
-        c.material_coord(m, x_fp, u, gx);
-        c.material_coord(m, y_fp, v, gy);
         const int64_t lx = tvt_floor_mod(gx, R), ly = tvt_floor_mod(gy, R);
         const std::span<const uint32_t> meta = scene.meta(c.index_of(m));
         const Ctx::Feature ft = c.feature_at(m, gx, gy, plain);

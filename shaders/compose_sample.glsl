@@ -111,14 +111,22 @@ float material_lod(int n, float footprint) {
   return log2(footprint * float(P.materials[n].resolution) * 256.0 / float(P.materials[n].period_fp));
 }
 
+// The trilinear pair of levels of material n at LOD `lod`: l0, l1 and the weight t of l1
+// (t = 0 where only l0 is read). The texture and the feature statistics chain share it.
+void trilinear_levels(int n, float lod, out int l0, out int l1, out float t) {
+  const float l = clamp(lod, 0.0, float(P.materials[n].mip_count - 1));
+  l0 = int(floor(l));
+  l1 = min(l0 + 1, P.materials[n].mip_count - 1);
+  t = l1 == l0 ? 0.0 : l - float(l0);
+}
+
 // Trilinear, wrapping material sample at tile-local coordinates (u, v) in [0, R).
 vec4 sample_material(int n, float u, float v, float lod) {
-  const float l = clamp(lod, 0.0, float(P.materials[n].mip_count - 1));
-  const int l0 = int(floor(l));
-  const int l1 = min(l0 + 1, P.materials[n].mip_count - 1);
-  const float t = l - float(l0);
+  int l0, l1;
+  float t;
+  trilinear_levels(n, lod, l0, l1, t);
   const vec4 a = material_bilinear(n, l0, u, v);
-  if (t <= 0.0 || l1 == l0) return a;
+  if (t <= 0.0) return a;
   return mix(a, material_bilinear(n, l1, u, v), t);
 }
 
@@ -174,12 +182,9 @@ vec4 hex_sample(int n, int64_t gx, float fx, int64_t gy, float fy, float lod) {
   }
   // sample_material() for each tile, its level pair worked out once; the offset tile's
   // coordinates wrap in 32 bits (the low bits of the 64-bit sum).
-  const int top = P.materials[n].mip_count - 1;
-  const float l = clamp(lod, 0.0, float(top));
-  const int l0 = int(floor(l));
-  const int l1 = min(l0 + 1, top);
-  const float t = l - float(l0);
-  const bool two_levels = t > 0.0 && l1 != l0;
+  int l0, l1;
+  float t;
+  trilinear_levels(n, lod, l0, l1, t);
   const int wrap = P.materials[n].resolution - 1;
   const int gx_tile = int(gx & (R - 1)), gy_tile = int(gy & (R - 1));
   vec4 linear = vec4(0.0);
@@ -192,7 +197,7 @@ vec4 hex_sample(int n, int64_t gx, float fx, int64_t gy, float fy, float lod) {
     const float u = float((gx_tile + int(h & 0xffffu)) & wrap) + fx;
     const float v = float((gy_tile + int(h >> 16u)) & wrap) + fy;
     vec4 texel = material_bilinear(n, l0, u, v);
-    if (two_levels) texel = mix(texel, material_bilinear(n, l1, u, v), t);
+    if (t > 0.0) texel = mix(texel, material_bilinear(n, l1, u, v), t);
     linear += wk * texel;
   }
   const vec4 mean = material_texel(n, P.materials[n].mip_count - 1, 0, 0);
@@ -203,8 +208,7 @@ vec4 hex_sample(int n, int64_t gx, float fx, int64_t gy, float fy, float lod) {
 
 // The material at a terrain position (x, y): its coordinates (global texel, for FBPB) and the
 // tiled texture, or hex-tiling where the material has it.
-vec4 material_at(int n, int64_t x_fp, int64_t y_fp, float lod, out int64_t gx, out int64_t gy) {
-  float fx, fy;
+vec4 material_at(int n, int64_t x_fp, int64_t y_fp, float lod, out int64_t gx, out int64_t gy, out float fx, out float fy) {
   material_texel_coord(n, x_fp, gx, fx);
   material_texel_coord(n, y_fp, gy, fy);
   if (P.materials[n].hex_edge > 0) return hex_sample(n, gx, fx, gy, fy, lod);
@@ -245,12 +249,11 @@ void feature_bilinear(int n, int level, float u, float v, out vec2 df, out vec4 
 }
 // The chain at tile-local material texel (u, v) and material LOD `lod`, trilinear as the texture.
 void feature_stats(int n, float u, float v, float lod, out vec2 df, out vec4 moment) {
-  const float l = clamp(lod, 0.0, float(P.materials[n].mip_count - 1));
-  const int l0 = int(floor(l));
-  const int l1 = min(l0 + 1, P.materials[n].mip_count - 1);
-  const float t = l - float(l0);
+  int l0, l1;
+  float t;
+  trilinear_levels(n, lod, l0, l1, t);
   feature_bilinear(n, l0, u, v, df, moment);
-  if (t <= 0.0 || l1 == l0) return;
+  if (t <= 0.0) return;
   vec2 df1;
   vec4 moment1;
   feature_bilinear(n, l1, u, v, df1, moment1);
@@ -401,7 +404,8 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
     wts[n] = (material_mask & (1u << uint(n))) != 0u ? weight_at(P.materials[n].weight_layer, x_fp, y_fp) : 0.0;
 
   int64_t g0x, g0y;
-  vec4 result = material_at(0, x_fp, y_fp, material_lod(0, footprint), g0x, g0y);
+  float f0x, f0y;
+  vec4 result = material_at(0, x_fp, y_fp, material_lod(0, footprint), g0x, g0y, f0x, f0y);
   float weight_sum = wts[0];
   bool feature_above = false;
 
@@ -414,8 +418,9 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
     if (plain <= 0.0 && (mode == TVT_MODE_LINEAR || mode == TVT_MODE_BLENDMAP)) continue;
 
     const float lod = material_lod(n, footprint);
-    int64_t gx, gy;  // global material texel (FBPB centroids)
-    vec4 colour = material_at(n, x_fp, y_fp, lod, gx, gy);
+    int64_t gx, gy;  // global material texel (FBPB centroids) and the position's fraction of it
+    float fx, fy;
+    vec4 colour = material_at(n, x_fp, y_fp, lod, gx, gy, fx, fy);
     float b = 0.0;
     float height = colour.a;
     bool visible = false;
@@ -449,16 +454,14 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
       if (mode == TVT_MODE_FBPB_DPT) fallback = non_feature;
       else if (prefiltered) blend_map_expected(plain, colour.a, a_stats.x, s, fallback, unused);
       else fallback = blend_map(plain, colour.a, s);
-      const float fade0 = 1.0 - ramp(material_lod(n, 1.0), P.materials[n].fbpb_fade_lo, P.materials[n].fbpb_fade_hi);
-      if (prefiltered && fade < 1.0 && fade0 > 0.0) {
+      const float fade0 = prefiltered && fade < 1.0
+                              ? 1.0 - ramp(material_lod(n, 1.0), P.materials[n].fbpb_fade_lo, P.materials[n].fbpb_fade_hi)
+                              : 0.0;
+      if (fade0 > 0.0) {
         const float nf = mode == TVT_MODE_FBPB_DPT ? non_feature : plain;
-        int64_t cgx, cgy;
-        float cfx, cfy;
-        material_texel_coord(n, x_fp, cgx, cfx);
-        material_texel_coord(n, y_fp, cgy, cfy);
         const int64_t mask = int64_t(P.materials[n].resolution - 1);
         vec2 df;
-        feature_stats(n, float(cgx & mask) + cfx, float(cgy & mask) + cfy, lod, df, feature_moment);
+        feature_stats(n, float(gx & mask) + fx, float(gy & mask) + fy, lod, df, feature_moment);
         float w_feature = min(plain * P.materials[n].cf, 1.0) * min(P.materials[n].cm * max(plain, df.y), 1.0);
         const float rel = lod - material_stat(n, TVT_STATS_FEATURE_LOG2_SIZE);
         const float e = 1.0 - ramp(rel, 2.0, 3.0);
