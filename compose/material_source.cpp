@@ -415,6 +415,42 @@ void append_material_stats(const MaterialAssets& a, std::vector<uint32_t>& words
 }
 
 uint32_t unorm16(double v) { return uint32_t(std::lround(std::clamp(v, 0.0, 1.0) * 65535.0)); }
+
+// The spread chain (compose_types.h): per level l >= 1, the standard deviation of A within
+// the level-0 texels under each level-l texel, from exact block sums of A and A^2, two unorm16
+// a word. Index l of the result is level l's words (index 0 empty); zeros where level 0 is not
+// the material's resolution.
+std::vector<std::vector<uint32_t>> a_spread_chain(const MipChain& albedo) {
+  std::vector<std::vector<uint32_t>> chain(albedo.mips.size());
+  for (size_t l = 1; l < chain.size(); ++l) {
+    const size_t rl = size_t(albedo.resolution) >> l;
+    chain[l].assign((rl * rl + 1) / 2, 0u);
+  }
+  const int res = albedo.resolution;
+  if (albedo.mips.empty() || res < 2 || albedo.mips.front().width != res || albedo.mips.front().height != res)
+    return chain;
+  std::vector<glm::dvec2> level(size_t(res) * size_t(res));  // mean of A and of A^2
+  for (size_t i = 0; i < level.size(); ++i) {
+    const double v = albedo.mips.front().texels[4 * i + 3] / 255.0;
+    level[i] = glm::dvec2(v, v * v);
+  }
+  for (int r = res / 2, l = 1; r >= 1 && size_t(l) < chain.size(); r /= 2, ++l) {
+    std::vector<glm::dvec2> next(size_t(r) * size_t(r));
+    std::vector<uint32_t>& words = chain[size_t(l)];
+    const size_t w2 = size_t(2 * r);
+    for (int y = 0; y < r; ++y)
+      for (int x = 0; x < r; ++x) {
+        const size_t i = size_t(y) * size_t(r) + size_t(x);
+        next[i] = 0.25 * (level[size_t(2 * y) * w2 + size_t(2 * x)] + level[size_t(2 * y) * w2 + size_t(2 * x + 1)] +
+                          level[size_t(2 * y + 1) * w2 + size_t(2 * x)] + level[size_t(2 * y + 1) * w2 + size_t(2 * x + 1)]);
+        const double sd = std::sqrt(std::max(next[i].y - next[i].x * next[i].x, 0.0));
+        words[i / 2] |= unorm16(sd * double(gpu::TVT_SPREAD_SCALE)) << (16 * (i & 1));
+      }
+    level = std::move(next);
+  }
+  return chain;
+}
+
 uint32_t snorm8(double v) { return uint32_t(uint8_t(int8_t(std::lround(std::clamp(v, -1.0, 1.0) * 127.0)))); }
 
 // The feature statistics chain after the level-0 meta words (compose_types.h,
@@ -475,10 +511,14 @@ MaterialWords pack_material(const MaterialAssets& a) {
   size_t count = 0;
   for (const ImageRGBA8& mip : a.albedo.mips) count += mip.texels.size() / 4;
   w.texels.reserve(count + size_t(gpu::TVT_MATERIAL_STATS_WORDS));
-  for (const ImageRGBA8& mip : a.albedo.mips)
+  const std::vector<std::vector<uint32_t>> spread = a_spread_chain(a.albedo);
+  for (size_t l = 0; l < a.albedo.mips.size(); ++l) {
+    const ImageRGBA8& mip = a.albedo.mips[l];
     for (size_t t = 0; t < mip.texels.size(); t += 4)
       w.texels.push_back(uint32_t(mip.texels[t]) | uint32_t(mip.texels[t + 1]) << 8 |
                          uint32_t(mip.texels[t + 2]) << 16 | uint32_t(mip.texels[t + 3]) << 24);
+    if (l >= 1 && l < spread.size()) w.texels.insert(w.texels.end(), spread[l].begin(), spread[l].end());
+  }
   append_material_stats(a, w.texels);
   if (a.meta) {
     w.has_meta = true;

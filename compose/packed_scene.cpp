@@ -241,8 +241,8 @@ Result<PackedScene> pack_scene(const SceneAssets& assets, const ComposeOptions& 
     g.log2_resolution = std::countr_zero(unsigned(g.resolution));
     g.mip_count = info.mip_count;
     g.texel_offset = uint32_t(out.texel_words);
-    for (int l = 0; l < g.mip_count; ++l) out.texel_words += (size_t(g.resolution) >> l) * (size_t(g.resolution) >> l);
-    out.texel_words += size_t(gpu::TVT_MATERIAL_STATS_WORDS);
+    out.texel_words += size_t(gpu::tvt_material_stats_offset(uint32_t(g.resolution), uint32_t(g.mip_count))) +
+                       size_t(gpu::TVT_MATERIAL_STATS_WORDS);
     g.meta_offset = gpu::TVT_NO_META;
     // Not loaded yet: an FBPB block promises features (checked when the material is loaded).
     const bool has_features = info.meta && (!info.features_known || info.feature_count > 0);

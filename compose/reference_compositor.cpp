@@ -131,8 +131,7 @@ struct Ctx {
   size_t index_of(const gpu::TvtMaterial& m) const { return size_t(&m - &p.materials[0]); }
 
   glm::dvec4 texel(const gpu::TvtMaterial& m, int level, int64_t x, int64_t y) const {
-    uint32_t offset = 0;  // within material m's words
-    for (int l = 0; l < level; ++l) offset += uint32_t(m.resolution >> l) * uint32_t(m.resolution >> l);
+    const uint32_t offset = gpu::tvt_material_level_offset(uint32_t(m.resolution), uint32_t(level));  // within m's words
     const int64_t rl = m.resolution >> level;
     const uint32_t w = s.texels(index_of(m))[offset + uint32_t(tvt_floor_mod(y, rl) * rl + tvt_floor_mod(x, rl))];
     return glm::dvec4(w & 0xffu, (w >> 8) & 0xffu, (w >> 16) & 0xffu, w >> 24) / 255.0;
@@ -265,8 +264,8 @@ struct Ctx {
 
   // The statistics block word `i` of material m (TVT_MATERIAL_STATS_WORDS).
   double stat(const gpu::TvtMaterial& m, int i) const {
-    const size_t r = size_t(m.resolution);
-    return double(std::bit_cast<float>(s.texels(index_of(m))[(4 * r * r - 1) / 3 + size_t(i)]));
+    return double(std::bit_cast<float>(
+        s.texels(index_of(m))[gpu::tvt_material_stats_offset(uint32_t(m.resolution), uint32_t(m.mip_count)) + size_t(i)]));
   }
 
   // Variance of A and its covariances with R, G, B within a footprint of material LOD `lod`,
@@ -284,15 +283,49 @@ struct Ctx {
     return a * (1.0 - t) + b * t;
   }
 
+  // Variance of A within the level-0 texels under level-`level` texel (x, y) of m (the spread
+  // chain, compose_types.h); 0 at level 0, a single texel.
+  double spread_texel(const gpu::TvtMaterial& m, int level, int64_t x, int64_t y) const {
+    if (level == 0) return 0.0;
+    const uint32_t res = uint32_t(m.resolution);
+    const int64_t rl = int64_t(res >> level);
+    const size_t i = size_t(tvt_floor_mod(y, rl) * rl + tvt_floor_mod(x, rl));
+    const uint32_t w = s.texels(index_of(m))[gpu::tvt_material_spread_offset(res, uint32_t(level)) + i / 2];
+    const double sd = double((w >> (16 * (i & 1))) & 0xffffu) / 65535.0 / double(gpu::TVT_SPREAD_SCALE);
+    return sd * sd;
+  }
+  // A's variance within the footprint at tile-local material texel (u, v) and LOD `lod`, read
+  // trilinearly as the texture is (compose_sample.glsl material_spread).
+  double spread(const gpu::TvtMaterial& m, double u, double v, double lod) const {
+    const Levels L = trilinear_levels(m, lod);
+    auto bilerp = [&](int level) {
+      const double scale = std::ldexp(1.0, -level);
+      const double ul = u * scale - 0.5, vl = v * scale - 0.5;
+      const double fi = std::floor(ul), fj = std::floor(vl);
+      const double fx = ul - fi, fy = vl - fj;
+      const int64_t i = int64_t(fi), j = int64_t(fj);
+      return (spread_texel(m, level, i, j) * (1 - fx) + spread_texel(m, level, i + 1, j) * fx) * (1 - fy) +
+             (spread_texel(m, level, i, j + 1) * (1 - fx) + spread_texel(m, level, i + 1, j + 1) * fx) * fy;
+    };
+    const double a = bilerp(L.l0);
+    if (L.t <= 0.0) return a;
+    return a * (1 - L.t) + bilerp(L.l1) * L.t;
+  }
+
   // Material sample at a terrain position: the tiled texture, or hex-tiling where it is on.
-  glm::dvec4 sample_material(const gpu::TvtMaterial& m, int64_t x_fp, int64_t y_fp, double lod) const {
+  // `a_var` (prefiltered): A's variance within the footprint there.
+  glm::dvec4 sample_material(const gpu::TvtMaterial& m, int64_t x_fp, int64_t y_fp, double lod,
+                             double* a_var = nullptr) const {
     double u, v;
     int64_t gx, gy;
     material_coord(m, x_fp, u, gx);
     material_coord(m, y_fp, v, gy);
-    if (m.hex_edge <= 0) return trilinear(m, u, v, lod);
+    if (m.hex_edge <= 0) {
+      if (a_var) *a_var = spread(m, u, v, lod);
+      return trilinear(m, u, v, lod);
+    }
     const double fx = u - double(tvt_floor_mod(gx, m.resolution)), fy = v - double(tvt_floor_mod(gy, m.resolution));
-    return hex_sample(m, gx, fx, gy, fy, lod);
+    return hex_sample(m, gx, fx, gy, fy, lod, a_var);
   }
 
   // Hex-tiling at global material texel (gx + fx, gy + fy): the triangle of a lattice with edge
@@ -300,7 +333,10 @@ struct Ctx {
   // hashed whole-texel offset, blended by barycentric weights raised to gamma (normalised, the
   // ones below `cut` dropped) about the material's mean (its top mip) so that the blend keeps
   // one tile's variance (docs/composition.md).
-  glm::dvec4 hex_sample(const gpu::TvtMaterial& m, int64_t gx, double fx, int64_t gy, double fy, double lod) const {
+  // `a_var`: A's variance within the footprint, the tiles' own spreads blended as the values are
+  // (independent tiles: sum w_k^2 var_k, scaled as the histogram preservation scales A).
+  glm::dvec4 hex_sample(const gpu::TvtMaterial& m, int64_t gx, double fx, int64_t gy, double fy, double lod,
+                        double* a_var = nullptr) const {
     const int64_t L = m.hex_edge, H = m.hex_row, R = m.resolution;
     const int64_t j = tvt_floor_div(gy, H);
     const double b = (double(gy - j * H) + fy) / double(H);
@@ -327,7 +363,7 @@ struct Ctx {
     double kept = 0.0;
     for (double& x : w) kept += (x = std::max(x / sum - double(m.hex_cut), 0.0));
     glm::dvec4 linear(0.0);
-    double squares = 0.0;
+    double squares = 0.0, var = 0.0;
     for (int k = 0; k < 3; ++k) {
       const double wk = w[k] / kept;
       if (wk <= 0.0) continue;
@@ -336,6 +372,11 @@ struct Ctx {
       const double u = double(tvt_floor_mod(gx + int64_t(h & 0xffffu), R)) + fx;
       const double v = double(tvt_floor_mod(gy + int64_t(h >> 16), R)) + fy;
       linear += wk * trilinear(m, u, v, lod);
+      if (a_var) var += wk * wk * spread(m, u, v, lod);
+    }
+    if (a_var) {
+      const double scale = 1.0 + double(m.hex_preserve) * (1.0 / std::sqrt(squares) - 1.0);
+      *a_var = scale * scale * var;
     }
     const glm::dvec4 mean = texel(m, m.mip_count - 1, 0, 0);
     const glm::dvec4 preserved = mean + (linear - mean) / std::sqrt(squares);
@@ -447,12 +488,14 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
     if (plain <= 0.0 && (mode == gpu::TVT_MODE_LINEAR || mode == gpu::TVT_MODE_BLENDMAP)) continue;
 
     const double lod = c.material_lod(m, footprint);
-    glm::dvec4 colour = c.sample_material(m, x_fp, y_fp, lod);
+    double a_var = 0.0;  // prefiltered: A's variance within the footprint
+    glm::dvec4 colour = c.sample_material(m, x_fp, y_fp, lod, prefiltered ? &a_var : nullptr);
     double b = 0.0;
     double height = colour.a;
     bool visible = false;
-    // Prefiltered: the spread of A within the footprint, and the blend map's covariance term
-    // with it (zero: no correction), whose colour part is the regression of RGB on A.
+    // Prefiltered: the texture's pooled variance of A and covariances with RGB at this LOD (the
+    // regression of RGB on A), and the blend map's covariance term with A (zero: no
+    // correction); A's own spread within the footprint is the local a_var.
     const glm::dvec4 a_stats = prefiltered ? c.a_stats(m, lod) : glm::dvec4(0.0);
     double dev = 0.0;
     bool dev_height = false;  // the layer's height is its A: A's own deviation shifts it too
@@ -464,17 +507,17 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
       b = weight_sum > 0.0 ? std::min(1.0, double(p.linear_boost) * plain / weight_sum) : 0.0;
     } else if (mode == gpu::TVT_MODE_BLENDMAP) {
       if (prefiltered) {
-        blend_map_expected(plain, colour.a, a_stats.x, m.blend_sharpness, b, dev);
+        blend_map_expected(plain, colour.a, a_var, m.blend_sharpness, b, dev);
         dev_height = true;
       } else {
         b = blend_map(plain, colour.a, m.blend_sharpness);
       }
     } else if (mode == gpu::TVT_MODE_DPT) {
-      c.dpt(m, x_fp, y_fp, footprint, plain, colour.a, b, height, prefiltered, a_stats.x, &dev);
+      c.dpt(m, x_fp, y_fp, footprint, plain, colour.a, b, height, prefiltered, a_var, &dev);
     } else {  // FBPB, FBPB+DPT
       double non_feature = 0.0;  // what a non-feature texel blends with: p (FBPB) or DPT's b
       double dpt_h = colour.a;
-      if (mode == gpu::TVT_MODE_FBPB_DPT) c.dpt(m, x_fp, y_fp, footprint, plain, colour.a, non_feature, dpt_h, prefiltered, a_stats.x);
+      if (mode == gpu::TVT_MODE_FBPB_DPT) c.dpt(m, x_fp, y_fp, footprint, plain, colour.a, non_feature, dpt_h, prefiltered, a_var);
       // Prefiltered: features stay exact (coherent per feature) until the fade's end, then
       // give way to their expectation over one LOD, where they span about a texel.
       const double fade = prefiltered ? 1.0 - ramp(lod, fbpb_fade_end(m), fbpb_prefiltered_end(m))
@@ -484,7 +527,7 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
         fallback = non_feature;
       } else if (prefiltered) {
         double unused;
-        blend_map_expected(plain, colour.a, a_stats.x, m.blend_sharpness, fallback, unused);
+        blend_map_expected(plain, colour.a, a_var, m.blend_sharpness, fallback, unused);
       } else {
         fallback = blend_map(plain, colour.a, m.blend_sharpness);
       }

@@ -28,12 +28,12 @@ MaterialUploader::MaterialUploader(vk::Context& context, const PackedScene& scen
     Material mat;
     mat.layout = m;
     // Level l of the chain, as material_texel() in compose_sample.glsl addresses it.
-    size_t at = m.texel_offset;
-    for (int l = 0; l < m.mip_count; ++l) {
-      mat.level_first.push_back(at);
-      at += (size_t(m.resolution) >> l) * (size_t(m.resolution) >> l);
-    }
-    at += size_t(gpu::TVT_MATERIAL_STATS_WORDS);  // the statistics travel with the 1x1 level
+    // Each level travels with its spread chain; the statistics travel with the 1x1 level.
+    for (int l = 0; l < m.mip_count; ++l)
+      mat.level_first.push_back(m.texel_offset + size_t(gpu::tvt_material_level_offset(uint32_t(m.resolution), uint32_t(l))));
+    const size_t at = m.texel_offset +
+                      size_t(gpu::tvt_material_stats_offset(uint32_t(m.resolution), uint32_t(m.mip_count))) +
+                      size_t(gpu::TVT_MATERIAL_STATS_WORDS);
     mat.level_first.push_back(at);
     mat.texels = {m.texel_offset, at - m.texel_offset};
     TVT_CHECK(at <= scene.texel_words);

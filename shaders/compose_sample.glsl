@@ -63,18 +63,41 @@ float weight_at(int layer, int64_t x_fp, int64_t y_fp) {
 }
 
 // Resolutions are powers of two, so wrapping is a mask (also right for negative indices) and
-// the mip chain offset has a closed form: sum_{j<l} (R>>j)^2 = (R^2 - (R>>l)^2) * 4/3.
+// the level offsets have closed forms (compose_types.h).
 vec4 material_texel(int n, int level, int x, int y) {
   const uint res = uint(P.materials[n].resolution);
   const uint rl = res >> uint(level);
-  const uint offset = P.materials[n].texel_offset + (res * res - rl * rl) / 3u * 4u;
+  const uint offset = P.materials[n].texel_offset + tvt_material_level_offset(res, uint(level));
   return unpackUnorm4x8(material_texels[offset + (uint(y) & (rl - 1u)) * rl + (uint(x) & (rl - 1u))]);
 }
 
 // Word i of material n's statistics block, after its 1x1 mip (TVT_MATERIAL_STATS_WORDS).
 float material_stat(int n, int i) {
+  const uint at = tvt_material_stats_offset(uint(P.materials[n].resolution), uint(P.materials[n].mip_count));
+  return uintBitsToFloat(material_texels[P.materials[n].texel_offset + at + uint(i)]);
+}
+
+// A's variance within the level-0 texels under level-`level` texel (x, y) (the spread chain);
+// 0 at level 0 (reference_compositor.cpp spread_texel).
+float spread_texel(int n, int level, int x, int y) {
+  if (level == 0) return 0.0;
   const uint res = uint(P.materials[n].resolution);
-  return uintBitsToFloat(material_texels[P.materials[n].texel_offset + (4u * res * res - 1u) / 3u + uint(i)]);
+  const uint rl = res >> uint(level);
+  const uint i = (uint(y) & (rl - 1u)) * rl + (uint(x) & (rl - 1u));
+  const uint w = material_texels[P.materials[n].texel_offset + tvt_material_spread_offset(res, uint(level)) + i / 2u];
+  const float sd = float((w >> (16u * (i & 1u))) & 0xffffu) / 65535.0 / TVT_SPREAD_SCALE;
+  return sd * sd;
+}
+
+float spread_bilinear(int n, int level, float u, float v) {
+  if (level == 0) return 0.0;
+  const float scale = exp2(-float(level));
+  const float ul = u * scale - 0.5, vl = v * scale - 0.5;
+  const float fi = floor(ul), fj = floor(vl);
+  const float fx = ul - fi, fy = vl - fj;
+  const int i = int(fi), j = int(fj);
+  return mix(mix(spread_texel(n, level, i, j), spread_texel(n, level, i + 1, j), fx),
+             mix(spread_texel(n, level, i, j + 1), spread_texel(n, level, i + 1, j + 1), fx), fy);
 }
 
 // Variance of A and its covariances with R, G, B within a footprint of material LOD `lod`.
@@ -130,8 +153,17 @@ vec4 sample_material(int n, float u, float v, float lod) {
   return mix(a, material_bilinear(n, l1, u, v), t);
 }
 
+// A's variance within the footprint at (u, v) and LOD `lod`, trilinear as the texture.
+float material_spread(int n, float u, float v, int l0, int l1, float t) {
+  const float a = spread_bilinear(n, l0, u, v);
+  if (t <= 0.0) return a;
+  return mix(a, spread_bilinear(n, l1, u, v), t);
+}
+
 // Hex-tiling at global material texel (gx + fx, gy + fy): reference_compositor.cpp hex_sample.
-vec4 hex_sample(int n, int64_t gx, float fx, int64_t gy, float fy, float lod) {
+// `want_var` (prefiltered): also A's variance within the footprint, the tiles' spreads blended
+// as their values (reference_compositor.cpp).
+vec4 hex_sample(int n, int64_t gx, float fx, int64_t gy, float fy, float lod, bool want_var, out float a_var) {
   const int64_t L = int64_t(P.materials[n].hex_edge), H = int64_t(P.materials[n].hex_row);
   const int64_t R = int64_t(P.materials[n].resolution);
   int64_t i, j;
@@ -188,7 +220,7 @@ vec4 hex_sample(int n, int64_t gx, float fx, int64_t gy, float fy, float lod) {
   const int wrap = P.materials[n].resolution - 1;
   const int gx_tile = int(gx & (R - 1)), gy_tile = int(gy & (R - 1));
   vec4 linear = vec4(0.0);
-  float squares = 0.0;
+  float squares = 0.0, var = 0.0;
   for (int k = 0; k < 3; ++k) {
     const float wk = w[k] / kept;
     if (wk <= 0.0) continue;  // most of the plane: one or two tiles, their fetches only
@@ -199,7 +231,10 @@ vec4 hex_sample(int n, int64_t gx, float fx, int64_t gy, float fy, float lod) {
     vec4 texel = material_bilinear(n, l0, u, v);
     if (t > 0.0) texel = mix(texel, material_bilinear(n, l1, u, v), t);
     linear += wk * texel;
+    if (want_var) var += wk * wk * material_spread(n, u, v, l0, l1, t);
   }
+  const float scale = 1.0 + P.materials[n].hex_preserve * (1.0 / sqrt(squares) - 1.0);
+  a_var = want_var ? scale * scale * var : 0.0;
   const vec4 mean = material_texel(n, P.materials[n].mip_count - 1, 0, 0);
   const vec4 preserved = mean + (linear - mean) / sqrt(squares);
   const vec4 r = mix(linear, preserved, P.materials[n].hex_preserve);
@@ -208,12 +243,22 @@ vec4 hex_sample(int n, int64_t gx, float fx, int64_t gy, float fy, float lod) {
 
 // The material at a terrain position (x, y): its coordinates (global texel, for FBPB) and the
 // tiled texture, or hex-tiling where the material has it.
-vec4 material_at(int n, int64_t x_fp, int64_t y_fp, float lod, out int64_t gx, out int64_t gy, out float fx, out float fy) {
+// `want_var` (prefiltered): a_var is A's variance within the footprint there.
+vec4 material_at(int n, int64_t x_fp, int64_t y_fp, float lod, bool want_var, out int64_t gx, out int64_t gy,
+                 out float fx, out float fy, out float a_var) {
   material_texel_coord(n, x_fp, gx, fx);
   material_texel_coord(n, y_fp, gy, fy);
-  if (P.materials[n].hex_edge > 0) return hex_sample(n, gx, fx, gy, fy, lod);
+  if (P.materials[n].hex_edge > 0) return hex_sample(n, gx, fx, gy, fy, lod, want_var, a_var);
   const int64_t mask = int64_t(P.materials[n].resolution - 1);
-  return sample_material(n, float(gx & mask) + fx, float(gy & mask) + fy, lod);
+  const float u = float(gx & mask) + fx, v = float(gy & mask) + fy;
+  a_var = 0.0;
+  if (want_var) {
+    int l0, l1;
+    float t;
+    trilinear_levels(n, lod, l0, l1, t);
+    a_var = material_spread(n, u, v, l0, l1, t);
+  }
+  return sample_material(n, u, v, lod);
 }
 
 // One texel of material n's feature statistics chain (compose_types.h) as (D, mean f) and the
@@ -405,7 +450,8 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
 
   int64_t g0x, g0y;
   float f0x, f0y;
-  vec4 result = material_at(0, x_fp, y_fp, material_lod(0, footprint), g0x, g0y, f0x, f0y);
+  float unused_var;
+  vec4 result = material_at(0, x_fp, y_fp, material_lod(0, footprint), false, g0x, g0y, f0x, f0y, unused_var);
   float weight_sum = wts[0];
   bool feature_above = false;
 
@@ -420,7 +466,8 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
     const float lod = material_lod(n, footprint);
     int64_t gx, gy;  // global material texel (FBPB centroids) and the position's fraction of it
     float fx, fy;
-    vec4 colour = material_at(n, x_fp, y_fp, lod, gx, gy, fx, fy);
+    float a_var;  // prefiltered: A's variance within the footprint
+    vec4 colour = material_at(n, x_fp, y_fp, lod, prefiltered, gx, gy, fx, fy, a_var);
     float b = 0.0;
     float height = colour.a;
     bool visible = false;
@@ -435,24 +482,24 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
       b = weight_sum > 0.0 ? min(1.0, P.linear_boost * plain / weight_sum) : 0.0;
     } else if (mode == TVT_MODE_BLENDMAP) {
       if (prefiltered) {
-        blend_map_expected(plain, colour.a, a_stats.x, s, b, dev);
+        blend_map_expected(plain, colour.a, a_var, s, b, dev);
         dev_height = true;
       } else {
         b = blend_map(plain, colour.a, s);
       }
     } else if (mode == TVT_MODE_DPT) {
-      dpt(n, x_fp, y_fp, footprint, plain, colour.a, prefiltered, a_stats.x, b, height, dev);
+      dpt(n, x_fp, y_fp, footprint, plain, colour.a, prefiltered, a_var, b, height, dev);
     } else {
       float non_feature = 0.0;
       float dpt_h = colour.a;
       float unused;
-      if (mode == TVT_MODE_FBPB_DPT) dpt(n, x_fp, y_fp, footprint, plain, colour.a, prefiltered, a_stats.x, non_feature, dpt_h, unused);
+      if (mode == TVT_MODE_FBPB_DPT) dpt(n, x_fp, y_fp, footprint, plain, colour.a, prefiltered, a_var, non_feature, dpt_h, unused);
       const float fade_end = max(P.materials[n].fbpb_fade_hi, P.materials[n].fbpb_fade_lo);
       const float fade = prefiltered ? 1.0 - ramp(lod, fade_end, fade_end + 1.0)
                                      : 1.0 - ramp(lod, P.materials[n].fbpb_fade_lo, P.materials[n].fbpb_fade_hi);
       float fallback;
       if (mode == TVT_MODE_FBPB_DPT) fallback = non_feature;
-      else if (prefiltered) blend_map_expected(plain, colour.a, a_stats.x, s, fallback, unused);
+      else if (prefiltered) blend_map_expected(plain, colour.a, a_var, s, fallback, unused);
       else fallback = blend_map(plain, colour.a, s);
       const float fade0 = prefiltered && fade < 1.0
                               ? 1.0 - ramp(material_lod(n, 1.0), P.materials[n].fbpb_fade_lo, P.materials[n].fbpb_fade_hi)

@@ -189,6 +189,12 @@ TEST_F(GpuCompose, PrefilteredMipsMatchReferenceForEveryMethod) {
   for (Method m : k_all_methods)
     expect_agreement(assets, options_for(m, MipStrategy{1, true}), {{0, 40, 60}, {2, 20, 30}, {5, 1, 1}, {7, 0, 0}},
                      "prefiltered " + std::string(to_string(m)));
+  // A's spread read through hex tiles on every material that can have them.
+  for (Method m : {Method::BlendMap, Method::Dpt2}) {
+    ComposeOptions o = options_for(m, MipStrategy{1, true});
+    o.hex = true;
+    expect_agreement(assets, o, {{2, 20, 30}, {4, 3, 2}}, "prefiltered hex " + std::string(to_string(m)));
+  }
   const SceneAssets& far = default_assets(24);
   const uint32_t last = uint32_t(far.desc.vt.pages_per_side(0) - 1);
   for (Method m : {Method::FbpbDpt, Method::BlendMap})

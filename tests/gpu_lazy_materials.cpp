@@ -39,15 +39,17 @@ const SceneAssets& default_assets() {
 }
 
 // Bytes the uploader copies for `needs`, from the packed layout: the texture levels from the
-// finest needed to the coarsest, the meta block (two words per texel of the meta-texture and
+// finest needed to the coarsest, each with A's spread chain, the meta block (two words per texel of the meta-texture and
 // of its feature statistics chain), the weight layer.
 uint64_t bytes_of(const PackedScene& s, const MaterialNeeds& needs) {
   uint64_t bytes = 0;
   for (int n = 0; n < s.params.material_count; ++n) {
     if (!(needs.mask & (1u << n))) continue;
     const gpu::TvtMaterial& m = s.params.materials[n];
-    for (int l = needs.finest_level[size_t(n)]; l < m.mip_count; ++l)
-      bytes += 4ull * uint64_t(m.resolution >> l) * uint64_t(m.resolution >> l);
+    for (int l = needs.finest_level[size_t(n)]; l < m.mip_count; ++l) {
+      const uint64_t texels = uint64_t(m.resolution >> l) * uint64_t(m.resolution >> l);
+      bytes += 4ull * (texels + (l >= 1 ? (texels + 1) / 2 : 0));  // and the level's spread chain
+    }
     bytes += 4ull * uint64_t(gpu::TVT_MATERIAL_STATS_WORDS);  // the statistics, with the 1x1 level
     if ((needs.meta_mask & (1u << n)) && m.meta_offset != gpu::TVT_NO_META)
       bytes += 8ull * uint64_t(gpu::tvt_meta_block_texels(uint32_t(m.resolution)));

@@ -560,6 +560,61 @@ TEST(Prefiltered, FeatureChainHoldsEachBlocksFractionAndColourMoment) {
   }
 }
 
+// A material's words: every level's texels where the layout says, each level >= 1 followed by
+// A's spread chain (the standard deviation of A within the level-0 texels under each texel, to
+// the unorm16 rounding), then the statistics block, and nothing after it.
+TEST(Prefiltered, SpreadChainHoldsEachBlocksDeviationOfA) {
+  // A rough left half (hashed A) and a smooth right half (a gentle ramp): the local spread
+  // differs several-fold, which the texture's pooled variance cannot tell apart.
+  ImageRGBA8 albedo(64, 64);
+  for (int y = 0; y < 64; ++y)
+    for (int x = 0; x < 64; ++x) {
+      uint8_t* t = albedo.at(x, y);
+      const uint32_t h = gpu::tvt_hash_coord(x, y, 7u);
+      t[0] = uint8_t(h), t[1] = uint8_t(h >> 8), t[2] = uint8_t(x * 4);
+      t[3] = x < 32 ? uint8_t(h >> 16) : uint8_t(100 + y);
+    }
+  MaterialAssets m;
+  m.albedo = build_mip_chain(albedo);
+  const MaterialWords w = pack_material(m);
+  const uint32_t res = 64, levels = 7;
+  ASSERT_EQ(w.mip_count, int(levels));
+  ASSERT_EQ(w.texels.size(), size_t(gpu::tvt_material_stats_offset(res, levels)) + size_t(gpu::TVT_MATERIAL_STATS_WORDS));
+  double largest = 0.0;
+  for (uint32_t level = 0; level < levels; ++level) {
+    const uint32_t rl = res >> level, side = 1u << level;
+    const ImageRGBA8& mip = m.albedo.mips[level];
+    const uint32_t first = gpu::tvt_material_level_offset(res, level);
+    for (uint32_t i = 0; i < rl * rl; ++i) {
+      const uint8_t* t = &mip.texels[4 * size_t(i)];
+      ASSERT_EQ(w.texels[first + i], uint32_t(t[0]) | uint32_t(t[1]) << 8 | uint32_t(t[2]) << 16 | uint32_t(t[3]) << 24)
+          << "level " << level << " texel " << i;
+    }
+    if (level == 0) continue;
+    ASSERT_EQ(gpu::tvt_material_spread_offset(res, level), first + rl * rl);
+    const uint32_t next = level + 1 < levels ? gpu::tvt_material_level_offset(res, level + 1)
+                                             : gpu::tvt_material_stats_offset(res, levels);
+    ASSERT_EQ(next - gpu::tvt_material_spread_offset(res, level), (rl * rl + 1) / 2) << "level " << level;
+    for (uint32_t by = 0; by < rl; ++by)
+      for (uint32_t bx = 0; bx < rl; ++bx) {
+        double sum = 0, squares = 0;
+        for (uint32_t y = by * side; y < (by + 1) * side; ++y)
+          for (uint32_t x = bx * side; x < (bx + 1) * side; ++x) {
+            const double v = albedo.at(int(x), int(y))[3] / 255.0;
+            sum += v, squares += v * v;
+          }
+        const double n = double(side) * double(side), mean = sum / n;
+        const double sd = std::sqrt(std::max(squares / n - mean * mean, 0.0));
+        largest = std::max(largest, sd);
+        const uint32_t i = by * rl + bx;
+        const uint32_t word = w.texels[gpu::tvt_material_spread_offset(res, level) + i / 2];
+        EXPECT_NEAR(double((word >> (16 * (i & 1))) & 0xffffu) / 65535.0 / gpu::TVT_SPREAD_SCALE, sd, 0.6 / 65535 / 2)
+            << "level " << level << " texel " << bx << "," << by;
+      }
+  }
+  EXPECT_GT(largest, 0.05);  // the material's A varies: the chain is not all zeros
+}
+
 // Features larger than the footprint, past the end of the FBPB fade (their expectation): the
 // prefiltered texel follows what its footprint holds (this feature's decision, the local
 // feature fraction and colour), not the texture's mean feature fraction, so it lands near the

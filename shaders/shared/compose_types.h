@@ -18,6 +18,32 @@ TVT_CONST int TVT_MODE_FBPB = 2;      // Feature-Based Probabilistic Blending
 TVT_CONST int TVT_MODE_DPT = 3;       // Dynamic Patch Transitions
 TVT_CONST int TVT_MODE_FBPB_DPT = 4;  // FBPB features over a DPT-shaped non-feature blend
 
+// A material's texel words (texel_offset): its mip chain, level l = 0 .. log2 R of
+// (R >> l)^2 RGBA8 texels, each level l >= 1 followed by its spread chain, then the statistics
+// block. The spread chain of level l holds, per level-l texel, the standard deviation of A
+// within the 2^l x 2^l level-0 texels under it, unorm16 of TVT_SPREAD_SCALE times it (A's
+// standard deviation is at most 1/2), two texels a word (texel i in the low half of word i / 2
+// when i is even), (R >> l)^2 / 2 words (one for the 1x1 level). Read by the prefiltered
+// strategy: A's spread within what a footprint covers, rather than the texture's mean.
+TVT_CONST float TVT_SPREAD_SCALE = 2.0;
+// Words before level `level` (its first texel), relative to texel_offset: the closed forms of
+// sum_{j<l} (R >> j)^2 = (R^2 - r^2) * 4/3 and of the spread words sum_{1<=j<l} (R >> j)^2 / 2.
+TVT_FN uint tvt_material_level_offset(uint res, uint level) {
+  if (level == 0u) return 0u;
+  const uint rl = res >> level;
+  return (res * res - rl * rl) / 3u * 4u + (res * res / 4u - rl * rl) / 3u * 2u;
+}
+// First word of level `level`'s spread chain (level >= 1), relative to texel_offset.
+TVT_FN uint tvt_material_spread_offset(uint res, uint level) {
+  const uint rl = res >> level;
+  return tvt_material_level_offset(res, level) + rl * rl;
+}
+// First word of the statistics block, relative to texel_offset: after the 1x1 level and its
+// one spread word (a 1x1 material has neither chain nor spread).
+TVT_FN uint tvt_material_stats_offset(uint res, uint levels) {
+  return levels <= 1u ? res * res : tvt_material_level_offset(res, levels - 1u) + 2u;
+}
+
 // Each material's texel words end with its statistics block, after the 1x1 mip: float bits,
 // four words per level l < 15 (the mean over level-l texels of the variance of A within the
 // level-0 texels under the texel, and of the covariances of A with R, G and B), then log2 of the
