@@ -416,37 +416,50 @@ void append_material_stats(const MaterialAssets& a, std::vector<uint32_t>& words
 
 uint32_t unorm16(double v) { return uint32_t(std::lround(std::clamp(v, 0.0, 1.0) * 65535.0)); }
 
-// The spread chain (compose_types.h): per level l >= 1, the standard deviation of A within
-// the level-0 texels under each level-l texel, from exact block sums of A and A^2, two unorm16
-// a word. Index l of the result is level l's words (index 0 empty); zeros where level 0 is not
-// the material's resolution.
+// The spread chain (compose_types.h): per level l >= 1 and texel, A over the level-0 texels
+// under it as two pieces split at the block's exact mean (below it, and the rest): the lower
+// piece's share p, the standard deviation of the pieces' means and each piece's half-width, from
+// exact sums. Index l of the result is level l's words (index 0 empty); zeros where level 0 is
+// not the material's resolution. Two passes over level 0 a level.
 std::vector<std::vector<uint32_t>> a_spread_chain(const MipChain& albedo) {
   std::vector<std::vector<uint32_t>> chain(albedo.mips.size());
   for (size_t l = 1; l < chain.size(); ++l) {
     const size_t rl = size_t(albedo.resolution) >> l;
-    chain[l].assign((rl * rl + 1) / 2, 0u);
+    chain[l].assign(rl * rl, 0u);
   }
   const int res = albedo.resolution;
   if (albedo.mips.empty() || res < 2 || albedo.mips.front().width != res || albedo.mips.front().height != res)
     return chain;
-  std::vector<glm::dvec2> level(size_t(res) * size_t(res));  // mean of A and of A^2
-  for (size_t i = 0; i < level.size(); ++i) {
-    const double v = albedo.mips.front().texels[4 * i + 3] / 255.0;
-    level[i] = glm::dvec2(v, v * v);
-  }
-  for (int r = res / 2, l = 1; r >= 1 && size_t(l) < chain.size(); r /= 2, ++l) {
-    std::vector<glm::dvec2> next(size_t(r) * size_t(r));
-    std::vector<uint32_t>& words = chain[size_t(l)];
-    const size_t w2 = size_t(2 * r);
-    for (int y = 0; y < r; ++y)
-      for (int x = 0; x < r; ++x) {
-        const size_t i = size_t(y) * size_t(r) + size_t(x);
-        next[i] = 0.25 * (level[size_t(2 * y) * w2 + size_t(2 * x)] + level[size_t(2 * y) * w2 + size_t(2 * x + 1)] +
-                          level[size_t(2 * y + 1) * w2 + size_t(2 * x)] + level[size_t(2 * y + 1) * w2 + size_t(2 * x + 1)]);
-        const double sd = std::sqrt(std::max(next[i].y - next[i].x * next[i].x, 0.0));
-        words[i / 2] |= unorm16(sd * double(gpu::TVT_SPREAD_SCALE)) << (16 * (i & 1));
+  const ImageRGBA8& top = albedo.mips.front();
+  auto a_at = [&](int x, int y) { return top.texels[4 * (size_t(y) * size_t(res) + size_t(x)) + 3] / 255.0; };
+  auto unorm8 = [](double v) { return uint32_t(std::lround(std::clamp(v, 0.0, 1.0) * 255.0)); };
+  const double scale = double(gpu::TVT_SPREAD_SCALE);
+  struct Piece {
+    double count = 0, sum = 0, squares = 0;
+    void add(double v) { count += 1, sum += v, squares += v * v; }
+    double mean() const { return count > 0 ? sum / count : 0.0; }
+    double var() const { return count > 0 ? std::max(squares / count - mean() * mean(), 0.0) : 0.0; }
+  };
+  for (int l = 1; size_t(l) < chain.size() && (res >> l) >= 1; ++l) {
+    const int rl = res >> l;
+    std::vector<double> mean(size_t(rl) * size_t(rl), 0.0);
+    for (int y = 0; y < res; ++y)
+      for (int x = 0; x < res; ++x) mean[size_t(y >> l) * size_t(rl) + size_t(x >> l)] += a_at(x, y);
+    const double n = std::ldexp(1.0, 2 * l);
+    for (double& m : mean) m /= n;
+    std::vector<Piece> lower(mean.size()), upper(mean.size());
+    for (int y = 0; y < res; ++y)
+      for (int x = 0; x < res; ++x) {
+        const size_t b = size_t(y >> l) * size_t(rl) + size_t(x >> l);
+        const double v = a_at(x, y);
+        (v < mean[b] ? lower[b] : upper[b]).add(v);
       }
-    level = std::move(next);
+    for (size_t b = 0; b < mean.size(); ++b) {
+      const double p = lower[b].count / n;
+      const double delta = std::sqrt(p * (1.0 - p)) * std::max(upper[b].mean() - lower[b].mean(), 0.0);
+      chain[size_t(l)][b] = unorm8(p) | unorm8(delta * scale) << 8 | unorm8(std::sqrt(3.0 * lower[b].var()) * scale) << 16 |
+                            unorm8(std::sqrt(3.0 * upper[b].var()) * scale) << 24;
+    }
   }
   return chain;
 }

@@ -62,6 +62,26 @@ void blend_map_expected(double b, double a_mean, double a_var, double s, double&
   dev = ((smoothstep_moment(t1) - smoothstep_moment(t0)) / (2.0 * half) - tm * e) / c1;
 }
 
+// The blend map's means over A in two pieces (the spread chain, compose_types.h): `spread` =
+// (p, delta, h_lo, h_hi), the lower piece's share, the standard deviation of the pieces' means
+// about a_mean and their half-widths; each piece uniform (blend_map_expected), mixed by share.
+// `dev` stays the mean of blend_map * (A - a_mean).
+void blend_map_spread(double b, double a_mean, const glm::dvec4& spread, double s, double& e, double& dev) {
+  const double p = clamp01(spread.x), delta = std::max(spread.y, 0.0);
+  if (!(delta > 1e-4) || p <= 0.0 || p >= 1.0) {  // one piece: the pieces' widths and delta pooled
+    const double var = (p * spread.z * spread.z + (1.0 - p) * spread.w * spread.w) / 3.0 + delta * delta;
+    blend_map_expected(b, a_mean, var, s, e, dev);
+    return;
+  }
+  const double lo = std::max(a_mean - delta * std::sqrt((1.0 - p) / p), -1.0);
+  const double hi = std::min(a_mean + delta * std::sqrt(p / (1.0 - p)), 2.0);
+  double e_lo, d_lo, e_hi, d_hi;
+  blend_map_expected(b, lo, spread.z * spread.z / 3.0, s, e_lo, d_lo);
+  blend_map_expected(b, hi, spread.w * spread.w / 3.0, s, e_hi, d_hi);
+  e = p * e_lo + (1.0 - p) * e_hi;
+  dev = p * (d_lo + e_lo * (lo - a_mean)) + (1.0 - p) * (d_hi + e_hi * (hi - a_mean));
+}
+
 // E[bilerp(m)^W] (coefficients TvtDptLayer::expect) or E[bilerp(m)^(2W)] (expect_sq) of a DPT
 // layer whose corner masks are 1 with probability q.
 double patch_moment(const float (&c)[3], double q) {
@@ -76,18 +96,18 @@ double patch_moment(const float (&c)[3], double q) {
 // lower point with probability 1 - mu, the higher with probability mu; at the largest variance
 // the two points are 0 and span, at none both are the mean; docs/composition.md). The blend map is a sharp threshold where A hardly varies, so the
 // mean of its values is not its value at the mean coverage.
-void blend_map_of_patches(double settled, double mean, double var, double span, double a_mean, double a_var, double s,
-                          double& e, double& dev) {
+void blend_map_of_patches(double settled, double mean, double var, double span, double a_mean, const glm::dvec4& a_spread,
+                          double s, double& e, double& dev) {
   const double mu = span > 0.0 ? std::clamp(mean / span, 0.0, 1.0) : 0.0;
   const double sd = span > 0.0 ? std::sqrt(std::clamp(var, 0.0, mu * (1.0 - mu) * span * span)) / span : 0.0;
   if (!(sd > 1e-4) || mu <= 0.0 || mu >= 1.0) {
-    blend_map_expected(std::min(settled + mean, 1.0), a_mean, a_var, s, e, dev);
+    blend_map_spread(std::min(settled + mean, 1.0), a_mean, a_spread, s, e, dev);
     return;
   }
   const double low = mu - sd * std::sqrt(mu / (1.0 - mu)), high = mu + sd * std::sqrt((1.0 - mu) / mu);
   double e_low, d_low, e_high, d_high;
-  blend_map_expected(std::min(settled + low * span, 1.0), a_mean, a_var, s, e_low, d_low);
-  blend_map_expected(std::min(settled + high * span, 1.0), a_mean, a_var, s, e_high, d_high);
+  blend_map_spread(std::min(settled + low * span, 1.0), a_mean, a_spread, s, e_low, d_low);
+  blend_map_spread(std::min(settled + high * span, 1.0), a_mean, a_spread, s, e_high, d_high);
   e = (1.0 - mu) * e_low + mu * e_high;
   dev = (1.0 - mu) * d_low + mu * d_high;
 }
@@ -283,20 +303,20 @@ struct Ctx {
     return a * (1.0 - t) + b * t;
   }
 
-  // Variance of A within the level-0 texels under level-`level` texel (x, y) of m (the spread
-  // chain, compose_types.h); 0 at level 0, a single texel.
-  double spread_texel(const gpu::TvtMaterial& m, int level, int64_t x, int64_t y) const {
-    if (level == 0) return 0.0;
+  // A within the level-0 texels under level-`level` texel (x, y) of m as (p, delta, h_lo, h_hi)
+  // (the spread chain, compose_types.h); none at level 0, a single texel.
+  glm::dvec4 spread_texel(const gpu::TvtMaterial& m, int level, int64_t x, int64_t y) const {
+    if (level == 0) return glm::dvec4(0.0);
     const uint32_t res = uint32_t(m.resolution);
     const int64_t rl = int64_t(res >> level);
     const size_t i = size_t(tvt_floor_mod(y, rl) * rl + tvt_floor_mod(x, rl));
-    const uint32_t w = s.texels(index_of(m))[gpu::tvt_material_spread_offset(res, uint32_t(level)) + i / 2];
-    const double sd = double((w >> (16 * (i & 1))) & 0xffffu) / 65535.0 / double(gpu::TVT_SPREAD_SCALE);
-    return sd * sd;
+    const uint32_t w = s.texels(index_of(m))[gpu::tvt_material_spread_offset(res, uint32_t(level)) + i];
+    const glm::dvec4 v = glm::dvec4(w & 0xffu, (w >> 8) & 0xffu, (w >> 16) & 0xffu, w >> 24) / 255.0;
+    return glm::dvec4(v.x, glm::dvec3(v.y, v.z, v.w) / double(gpu::TVT_SPREAD_SCALE));
   }
-  // A's variance within the footprint at tile-local material texel (u, v) and LOD `lod`, read
-  // trilinearly as the texture is (compose_sample.glsl material_spread).
-  double spread(const gpu::TvtMaterial& m, double u, double v, double lod) const {
+  // A's distribution within the footprint at tile-local material texel (u, v) and LOD `lod`,
+  // read trilinearly as the texture is (compose_sample.glsl material_spread).
+  glm::dvec4 spread(const gpu::TvtMaterial& m, double u, double v, double lod) const {
     const Levels L = trilinear_levels(m, lod);
     auto bilerp = [&](int level) {
       const double scale = std::ldexp(1.0, -level);
@@ -307,25 +327,25 @@ struct Ctx {
       return (spread_texel(m, level, i, j) * (1 - fx) + spread_texel(m, level, i + 1, j) * fx) * (1 - fy) +
              (spread_texel(m, level, i, j + 1) * (1 - fx) + spread_texel(m, level, i + 1, j + 1) * fx) * fy;
     };
-    const double a = bilerp(L.l0);
+    const glm::dvec4 a = bilerp(L.l0);
     if (L.t <= 0.0) return a;
     return a * (1 - L.t) + bilerp(L.l1) * L.t;
   }
 
   // Material sample at a terrain position: the tiled texture, or hex-tiling where it is on.
-  // `a_var` (prefiltered): A's variance within the footprint there.
+  // `a_spread` (prefiltered): A's distribution within the footprint there (spread()).
   glm::dvec4 sample_material(const gpu::TvtMaterial& m, int64_t x_fp, int64_t y_fp, double lod,
-                             double* a_var = nullptr) const {
+                             glm::dvec4* a_spread = nullptr) const {
     double u, v;
     int64_t gx, gy;
     material_coord(m, x_fp, u, gx);
     material_coord(m, y_fp, v, gy);
     if (m.hex_edge <= 0) {
-      if (a_var) *a_var = spread(m, u, v, lod);
+      if (a_spread) *a_spread = spread(m, u, v, lod);
       return trilinear(m, u, v, lod);
     }
     const double fx = u - double(tvt_floor_mod(gx, m.resolution)), fy = v - double(tvt_floor_mod(gy, m.resolution));
-    return hex_sample(m, gx, fx, gy, fy, lod, a_var);
+    return hex_sample(m, gx, fx, gy, fy, lod, a_spread);
   }
 
   // Hex-tiling at global material texel (gx + fx, gy + fy): the triangle of a lattice with edge
@@ -333,10 +353,11 @@ struct Ctx {
   // hashed whole-texel offset, blended by barycentric weights raised to gamma (normalised, the
   // ones below `cut` dropped) about the material's mean (its top mip) so that the blend keeps
   // one tile's variance (docs/composition.md).
-  // `a_var`: A's variance within the footprint, the tiles' own spreads blended as the values are
-  // (independent tiles: sum w_k^2 var_k, scaled as the histogram preservation scales A).
+  // `a_spread`: A's distribution within the footprint, the tiles' own blended as their values
+  // are (independent tiles: the deviations and half-widths as sqrt(sum w_k^2 x_k^2), scaled as
+  // the histogram preservation scales A; the share weighted by w_k^2).
   glm::dvec4 hex_sample(const gpu::TvtMaterial& m, int64_t gx, double fx, int64_t gy, double fy, double lod,
-                        double* a_var = nullptr) const {
+                        glm::dvec4* a_spread = nullptr) const {
     const int64_t L = m.hex_edge, H = m.hex_row, R = m.resolution;
     const int64_t j = tvt_floor_div(gy, H);
     const double b = (double(gy - j * H) + fy) / double(H);
@@ -363,7 +384,8 @@ struct Ctx {
     double kept = 0.0;
     for (double& x : w) kept += (x = std::max(x / sum - double(m.hex_cut), 0.0));
     glm::dvec4 linear(0.0);
-    double squares = 0.0, var = 0.0;
+    double squares = 0.0;
+    glm::dvec4 spread_sum(0.0);  // sum of w_k^2 (p, delta^2, h_lo^2, h_hi^2)
     for (int k = 0; k < 3; ++k) {
       const double wk = w[k] / kept;
       if (wk <= 0.0) continue;
@@ -372,11 +394,14 @@ struct Ctx {
       const double u = double(tvt_floor_mod(gx + int64_t(h & 0xffffu), R)) + fx;
       const double v = double(tvt_floor_mod(gy + int64_t(h >> 16), R)) + fy;
       linear += wk * trilinear(m, u, v, lod);
-      if (a_var) var += wk * wk * spread(m, u, v, lod);
+      if (a_spread) {
+        const glm::dvec4 t = spread(m, u, v, lod);
+        spread_sum += wk * wk * glm::dvec4(t.x, t.y * t.y, t.z * t.z, t.w * t.w);
+      }
     }
-    if (a_var) {
+    if (a_spread) {
       const double scale = 1.0 + double(m.hex_preserve) * (1.0 / std::sqrt(squares) - 1.0);
-      *a_var = scale * scale * var;
+      *a_spread = glm::dvec4(spread_sum.x / squares, scale * glm::sqrt(glm::dvec3(spread_sum.y, spread_sum.z, spread_sum.w)));
     }
     const glm::dvec4 mean = texel(m, m.mip_count - 1, 0, 0);
     const glm::dvec4 preserved = mean + (linear - mean) / std::sqrt(squares);
@@ -385,11 +410,12 @@ struct Ctx {
   }
 
   // DPT (eq. 4.1–4.4, Algorithms 2–3): blend weight b and patch height h for material m.
-  // Prefiltered (`a_var` >= 0 given): a layer whose patches are small against the footprint
+  // Prefiltered (`a_spread` given): a layer whose patches are small against the footprint
   // takes its expected coverage instead of its point value, and the blend maps their mean
   // over A; `dev` is the blend map's covariance term (blend_map_expected).
   void dpt(const gpu::TvtMaterial& m, int64_t x_fp, int64_t y_fp, double footprint, double plain, double height_a,
-           double& b_out, double& h_out, bool prefiltered = false, double a_var = 0.0, double* dev = nullptr) const {
+           double& b_out, double& h_out, bool prefiltered = false, const glm::dvec4& a_spread = glm::dvec4(0.0),
+           double* dev = nullptr) const {
     double b = 0, h = 0, fade_max = 0;
     double settled = 0, mean = 0, var = 0, span = 0;  // prefiltered: b = settled + X, X in [0, span]
     for (int k = 0; k < m.dpt_layer_count; ++k) {
@@ -422,8 +448,8 @@ struct Ctx {
     h = std::min(h, 1.0);
     if (prefiltered) {
       double e_patch, d_patch, e_plain, d_plain;
-      blend_map_of_patches(settled, mean, var, span, height_a, a_var, m.blend_sharpness, e_patch, d_patch);
-      blend_map_expected(plain, height_a, a_var, m.blend_sharpness, e_plain, d_plain);
+      blend_map_of_patches(settled, mean, var, span, height_a, a_spread, m.blend_sharpness, e_patch, d_patch);
+      blend_map_spread(plain, height_a, a_spread, m.blend_sharpness, e_plain, d_plain);
       b_out = fade_max * e_patch + (1.0 - fade_max) * e_plain;
       if (dev) *dev = fade_max * d_patch + (1.0 - fade_max) * d_plain;
       h_out = h;
@@ -488,14 +514,14 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
     if (plain <= 0.0 && (mode == gpu::TVT_MODE_LINEAR || mode == gpu::TVT_MODE_BLENDMAP)) continue;
 
     const double lod = c.material_lod(m, footprint);
-    double a_var = 0.0;  // prefiltered: A's variance within the footprint
-    glm::dvec4 colour = c.sample_material(m, x_fp, y_fp, lod, prefiltered ? &a_var : nullptr);
+    glm::dvec4 a_spread(0.0);  // prefiltered: A's distribution within the footprint
+    glm::dvec4 colour = c.sample_material(m, x_fp, y_fp, lod, prefiltered ? &a_spread : nullptr);
     double b = 0.0;
     double height = colour.a;
     bool visible = false;
     // Prefiltered: the texture's pooled variance of A and covariances with RGB at this LOD (the
     // regression of RGB on A), and the blend map's covariance term with A (zero: no
-    // correction); A's own spread within the footprint is the local a_var.
+    // correction); A's own distribution within the footprint is the local a_spread.
     const glm::dvec4 a_stats = prefiltered ? c.a_stats(m, lod) : glm::dvec4(0.0);
     double dev = 0.0;
     bool dev_height = false;  // the layer's height is its A: A's own deviation shifts it too
@@ -507,17 +533,17 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
       b = weight_sum > 0.0 ? std::min(1.0, double(p.linear_boost) * plain / weight_sum) : 0.0;
     } else if (mode == gpu::TVT_MODE_BLENDMAP) {
       if (prefiltered) {
-        blend_map_expected(plain, colour.a, a_var, m.blend_sharpness, b, dev);
+        blend_map_spread(plain, colour.a, a_spread, m.blend_sharpness, b, dev);
         dev_height = true;
       } else {
         b = blend_map(plain, colour.a, m.blend_sharpness);
       }
     } else if (mode == gpu::TVT_MODE_DPT) {
-      c.dpt(m, x_fp, y_fp, footprint, plain, colour.a, b, height, prefiltered, a_var, &dev);
+      c.dpt(m, x_fp, y_fp, footprint, plain, colour.a, b, height, prefiltered, a_spread, &dev);
     } else {  // FBPB, FBPB+DPT
       double non_feature = 0.0;  // what a non-feature texel blends with: p (FBPB) or DPT's b
       double dpt_h = colour.a;
-      if (mode == gpu::TVT_MODE_FBPB_DPT) c.dpt(m, x_fp, y_fp, footprint, plain, colour.a, non_feature, dpt_h, prefiltered, a_var);
+      if (mode == gpu::TVT_MODE_FBPB_DPT) c.dpt(m, x_fp, y_fp, footprint, plain, colour.a, non_feature, dpt_h, prefiltered, a_spread);
       // Prefiltered: features stay exact (coherent per feature) until the fade's end, then
       // give way to their expectation over one LOD, where they span about a texel.
       const double fade = prefiltered ? 1.0 - ramp(lod, fbpb_fade_end(m), fbpb_prefiltered_end(m))
@@ -527,7 +553,7 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
         fallback = non_feature;
       } else if (prefiltered) {
         double unused;
-        blend_map_expected(plain, colour.a, a_var, m.blend_sharpness, fallback, unused);
+        blend_map_spread(plain, colour.a, a_spread, m.blend_sharpness, fallback, unused);
       } else {
         fallback = blend_map(plain, colour.a, m.blend_sharpness);
       }

@@ -42,6 +42,24 @@ void blend_map_expected(float b, float a_mean, float a_var, float s, out float e
   dev = ((smoothstep_moment(t1) - smoothstep_moment(t0)) / (2.0 * half_width) - tm * e) / c1;
 }
 
+// The blend map's means over A in two pieces, `spread` = (p, delta, h_lo, h_hi) from the spread
+// chain (reference_compositor.cpp blend_map_spread).
+void blend_map_spread(float b, float a_mean, vec4 spread, float s, out float e, out float dev) {
+  const float p = clamp01(spread.x), delta = max(spread.y, 0.0);
+  if (!(delta > 1e-4) || p <= 0.0 || p >= 1.0) {
+    const float var = (p * spread.z * spread.z + (1.0 - p) * spread.w * spread.w) / 3.0 + delta * delta;
+    blend_map_expected(b, a_mean, var, s, e, dev);
+    return;
+  }
+  const float lo = max(a_mean - delta * sqrt((1.0 - p) / p), -1.0);
+  const float hi = min(a_mean + delta * sqrt(p / (1.0 - p)), 2.0);
+  float e_lo, d_lo, e_hi, d_hi;
+  blend_map_expected(b, lo, spread.z * spread.z / 3.0, s, e_lo, d_lo);
+  blend_map_expected(b, hi, spread.w * spread.w / 3.0, s, e_hi, d_hi);
+  e = p * e_lo + (1.0 - p) * e_hi;
+  dev = p * (d_lo + e_lo * (lo - a_mean)) + (1.0 - p) * (d_hi + e_hi * (hi - a_mean));
+}
+
 // Bilinear weight at a terrain position, clamped at the terrain edge. The position becomes a
 // float only after clamping, as a fraction of the terrain: its rounding (2^-24 of the terrain,
 // at most 2^-11 of a weight texel for grids up to 8192) is far below what the smooth weight
@@ -77,20 +95,19 @@ float material_stat(int n, int i) {
   return uintBitsToFloat(material_texels[P.materials[n].texel_offset + at + uint(i)]);
 }
 
-// A's variance within the level-0 texels under level-`level` texel (x, y) (the spread chain);
-// 0 at level 0 (reference_compositor.cpp spread_texel).
-float spread_texel(int n, int level, int x, int y) {
-  if (level == 0) return 0.0;
+// A within the level-0 texels under level-`level` texel (x, y) as (p, delta, h_lo, h_hi) (the
+// spread chain, compose_types.h); none at level 0 (reference_compositor.cpp spread_texel).
+vec4 spread_texel(int n, int level, int x, int y) {
+  if (level == 0) return vec4(0.0);
   const uint res = uint(P.materials[n].resolution);
   const uint rl = res >> uint(level);
   const uint i = (uint(y) & (rl - 1u)) * rl + (uint(x) & (rl - 1u));
-  const uint w = material_texels[P.materials[n].texel_offset + tvt_material_spread_offset(res, uint(level)) + i / 2u];
-  const float sd = float((w >> (16u * (i & 1u))) & 0xffffu) / 65535.0 / TVT_SPREAD_SCALE;
-  return sd * sd;
+  const vec4 v = unpackUnorm4x8(material_texels[P.materials[n].texel_offset + tvt_material_spread_offset(res, uint(level)) + i]);
+  return vec4(v.x, v.yzw / TVT_SPREAD_SCALE);
 }
 
-float spread_bilinear(int n, int level, float u, float v) {
-  if (level == 0) return 0.0;
+vec4 spread_bilinear(int n, int level, float u, float v) {
+  if (level == 0) return vec4(0.0);
   const float scale = exp2(-float(level));
   const float ul = u * scale - 0.5, vl = v * scale - 0.5;
   const float fi = floor(ul), fj = floor(vl);
@@ -153,17 +170,17 @@ vec4 sample_material(int n, float u, float v, float lod) {
   return mix(a, material_bilinear(n, l1, u, v), t);
 }
 
-// A's variance within the footprint at (u, v) and LOD `lod`, trilinear as the texture.
-float material_spread(int n, float u, float v, int l0, int l1, float t) {
-  const float a = spread_bilinear(n, l0, u, v);
+// A's distribution within the footprint at (u, v) and LOD `lod`, trilinear as the texture.
+vec4 material_spread(int n, float u, float v, int l0, int l1, float t) {
+  const vec4 a = spread_bilinear(n, l0, u, v);
   if (t <= 0.0) return a;
   return mix(a, spread_bilinear(n, l1, u, v), t);
 }
 
 // Hex-tiling at global material texel (gx + fx, gy + fy): reference_compositor.cpp hex_sample.
-// `want_var` (prefiltered): also A's variance within the footprint, the tiles' spreads blended
-// as their values (reference_compositor.cpp).
-vec4 hex_sample(int n, int64_t gx, float fx, int64_t gy, float fy, float lod, bool want_var, out float a_var) {
+// `want_spread` (prefiltered): also A's distribution within the footprint, the tiles' blended as
+// their values (reference_compositor.cpp).
+vec4 hex_sample(int n, int64_t gx, float fx, int64_t gy, float fy, float lod, bool want_spread, out vec4 a_spread) {
   const int64_t L = int64_t(P.materials[n].hex_edge), H = int64_t(P.materials[n].hex_row);
   const int64_t R = int64_t(P.materials[n].resolution);
   int64_t i, j;
@@ -220,7 +237,8 @@ vec4 hex_sample(int n, int64_t gx, float fx, int64_t gy, float fy, float lod, bo
   const int wrap = P.materials[n].resolution - 1;
   const int gx_tile = int(gx & (R - 1)), gy_tile = int(gy & (R - 1));
   vec4 linear = vec4(0.0);
-  float squares = 0.0, var = 0.0;
+  float squares = 0.0;
+  vec4 spread_sum = vec4(0.0);  // sum of w_k^2 (p, delta^2, h_lo^2, h_hi^2)
   for (int k = 0; k < 3; ++k) {
     const float wk = w[k] / kept;
     if (wk <= 0.0) continue;  // most of the plane: one or two tiles, their fetches only
@@ -231,10 +249,13 @@ vec4 hex_sample(int n, int64_t gx, float fx, int64_t gy, float fy, float lod, bo
     vec4 texel = material_bilinear(n, l0, u, v);
     if (t > 0.0) texel = mix(texel, material_bilinear(n, l1, u, v), t);
     linear += wk * texel;
-    if (want_var) var += wk * wk * material_spread(n, u, v, l0, l1, t);
+    if (want_spread) {
+      const vec4 sp = material_spread(n, u, v, l0, l1, t);
+      spread_sum += wk * wk * vec4(sp.x, sp.yzw * sp.yzw);
+    }
   }
   const float scale = 1.0 + P.materials[n].hex_preserve * (1.0 / sqrt(squares) - 1.0);
-  a_var = want_var ? scale * scale * var : 0.0;
+  a_spread = want_spread ? vec4(spread_sum.x / squares, scale * sqrt(spread_sum.yzw)) : vec4(0.0);
   const vec4 mean = material_texel(n, P.materials[n].mip_count - 1, 0, 0);
   const vec4 preserved = mean + (linear - mean) / sqrt(squares);
   const vec4 r = mix(linear, preserved, P.materials[n].hex_preserve);
@@ -243,20 +264,20 @@ vec4 hex_sample(int n, int64_t gx, float fx, int64_t gy, float fy, float lod, bo
 
 // The material at a terrain position (x, y): its coordinates (global texel, for FBPB) and the
 // tiled texture, or hex-tiling where the material has it.
-// `want_var` (prefiltered): a_var is A's variance within the footprint there.
-vec4 material_at(int n, int64_t x_fp, int64_t y_fp, float lod, bool want_var, out int64_t gx, out int64_t gy,
-                 out float fx, out float fy, out float a_var) {
+// `want_spread` (prefiltered): a_spread is A's distribution within the footprint there.
+vec4 material_at(int n, int64_t x_fp, int64_t y_fp, float lod, bool want_spread, out int64_t gx, out int64_t gy,
+                 out float fx, out float fy, out vec4 a_spread) {
   material_texel_coord(n, x_fp, gx, fx);
   material_texel_coord(n, y_fp, gy, fy);
-  if (P.materials[n].hex_edge > 0) return hex_sample(n, gx, fx, gy, fy, lod, want_var, a_var);
+  if (P.materials[n].hex_edge > 0) return hex_sample(n, gx, fx, gy, fy, lod, want_spread, a_spread);
   const int64_t mask = int64_t(P.materials[n].resolution - 1);
   const float u = float(gx & mask) + fx, v = float(gy & mask) + fy;
-  a_var = 0.0;
-  if (want_var) {
+  a_spread = vec4(0.0);
+  if (want_spread) {
     int l0, l1;
     float t;
     trilinear_levels(n, lod, l0, l1, t);
-    a_var = material_spread(n, u, v, l0, l1, t);
+    a_spread = material_spread(n, u, v, l0, l1, t);
   }
   return sample_material(n, u, v, lod);
 }
@@ -342,18 +363,18 @@ float patch_second_moment(int n, int k, float q) {
 
 // The blend map's means over a patch sum settled + X, X in [0, span] with this mean and variance
 // taken as a two-point distribution (reference_compositor.cpp blend_map_of_patches).
-void blend_map_of_patches(float settled, float mean, float var, float span, float a_mean, float a_var, float s,
+void blend_map_of_patches(float settled, float mean, float var, float span, float a_mean, vec4 a_spread, float s,
                           out float e, out float dev) {
   const float mu = span > 0.0 ? clamp(mean / span, 0.0, 1.0) : 0.0;
   const float sd = span > 0.0 ? sqrt(clamp(var, 0.0, mu * (1.0 - mu) * span * span)) / span : 0.0;
   if (!(sd > 1e-4) || mu <= 0.0 || mu >= 1.0) {
-    blend_map_expected(min(settled + mean, 1.0), a_mean, a_var, s, e, dev);
+    blend_map_spread(min(settled + mean, 1.0), a_mean, a_spread, s, e, dev);
     return;
   }
   const float low = mu - sd * sqrt(mu / (1.0 - mu)), high = mu + sd * sqrt((1.0 - mu) / mu);
   float e_low, d_low, e_high, d_high;
-  blend_map_expected(min(settled + low * span, 1.0), a_mean, a_var, s, e_low, d_low);
-  blend_map_expected(min(settled + high * span, 1.0), a_mean, a_var, s, e_high, d_high);
+  blend_map_spread(min(settled + low * span, 1.0), a_mean, a_spread, s, e_low, d_low);
+  blend_map_spread(min(settled + high * span, 1.0), a_mean, a_spread, s, e_high, d_high);
   e = (1.0 - mu) * e_low + mu * e_high;
   dev = (1.0 - mu) * d_low + mu * d_high;
 }
@@ -395,7 +416,7 @@ float patch_value(int n, int k, int64_t x_fp, int64_t y_fp) {
 }
 
 // DPT eq 4.1-4.4, Algorithms 2-3. Prefiltered: as reference_compositor.cpp dpt().
-void dpt(int n, int64_t x_fp, int64_t y_fp, float footprint, float plain, float height_a, bool prefiltered, float a_var,
+void dpt(int n, int64_t x_fp, int64_t y_fp, float footprint, float plain, float height_a, bool prefiltered, vec4 a_spread,
          out float b_out, out float h_out, out float dev) {
   float b = 0.0, h = 0.0, fade_max = 0.0;
   float settled = 0.0, mean = 0.0, var = 0.0, span = 0.0;  // prefiltered: b = settled + X, X in [0, span]
@@ -430,8 +451,8 @@ void dpt(int n, int64_t x_fp, int64_t y_fp, float footprint, float plain, float 
   const float s = P.materials[n].blend_sharpness;
   if (prefiltered) {
     float e_patch, d_patch, e_plain, d_plain;
-    blend_map_of_patches(settled, mean, var, span, height_a, a_var, s, e_patch, d_patch);
-    blend_map_expected(plain, height_a, a_var, s, e_plain, d_plain);
+    blend_map_of_patches(settled, mean, var, span, height_a, a_spread, s, e_patch, d_patch);
+    blend_map_spread(plain, height_a, a_spread, s, e_plain, d_plain);
     b_out = fade_max * e_patch + (1.0 - fade_max) * e_plain;
     dev = fade_max * d_patch + (1.0 - fade_max) * d_plain;
     return;
@@ -450,8 +471,8 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
 
   int64_t g0x, g0y;
   float f0x, f0y;
-  float unused_var;
-  vec4 result = material_at(0, x_fp, y_fp, material_lod(0, footprint), false, g0x, g0y, f0x, f0y, unused_var);
+  vec4 unused_spread;
+  vec4 result = material_at(0, x_fp, y_fp, material_lod(0, footprint), false, g0x, g0y, f0x, f0y, unused_spread);
   float weight_sum = wts[0];
   bool feature_above = false;
 
@@ -466,8 +487,8 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
     const float lod = material_lod(n, footprint);
     int64_t gx, gy;  // global material texel (FBPB centroids) and the position's fraction of it
     float fx, fy;
-    float a_var;  // prefiltered: A's variance within the footprint
-    vec4 colour = material_at(n, x_fp, y_fp, lod, prefiltered, gx, gy, fx, fy, a_var);
+    vec4 a_spread;  // prefiltered: A's distribution within the footprint
+    vec4 colour = material_at(n, x_fp, y_fp, lod, prefiltered, gx, gy, fx, fy, a_spread);
     float b = 0.0;
     float height = colour.a;
     bool visible = false;
@@ -482,24 +503,24 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
       b = weight_sum > 0.0 ? min(1.0, P.linear_boost * plain / weight_sum) : 0.0;
     } else if (mode == TVT_MODE_BLENDMAP) {
       if (prefiltered) {
-        blend_map_expected(plain, colour.a, a_var, s, b, dev);
+        blend_map_spread(plain, colour.a, a_spread, s, b, dev);
         dev_height = true;
       } else {
         b = blend_map(plain, colour.a, s);
       }
     } else if (mode == TVT_MODE_DPT) {
-      dpt(n, x_fp, y_fp, footprint, plain, colour.a, prefiltered, a_var, b, height, dev);
+      dpt(n, x_fp, y_fp, footprint, plain, colour.a, prefiltered, a_spread, b, height, dev);
     } else {
       float non_feature = 0.0;
       float dpt_h = colour.a;
       float unused;
-      if (mode == TVT_MODE_FBPB_DPT) dpt(n, x_fp, y_fp, footprint, plain, colour.a, prefiltered, a_var, non_feature, dpt_h, unused);
+      if (mode == TVT_MODE_FBPB_DPT) dpt(n, x_fp, y_fp, footprint, plain, colour.a, prefiltered, a_spread, non_feature, dpt_h, unused);
       const float fade_end = max(P.materials[n].fbpb_fade_hi, P.materials[n].fbpb_fade_lo);
       const float fade = prefiltered ? 1.0 - ramp(lod, fade_end, fade_end + 1.0)
                                      : 1.0 - ramp(lod, P.materials[n].fbpb_fade_lo, P.materials[n].fbpb_fade_hi);
       float fallback;
       if (mode == TVT_MODE_FBPB_DPT) fallback = non_feature;
-      else if (prefiltered) blend_map_expected(plain, colour.a, a_var, s, fallback, unused);
+      else if (prefiltered) blend_map_spread(plain, colour.a, a_spread, s, fallback, unused);
       else fallback = blend_map(plain, colour.a, s);
       const float fade0 = prefiltered && fade < 1.0
                               ? 1.0 - ramp(material_lod(n, 1.0), P.materials[n].fbpb_fade_lo, P.materials[n].fbpb_fade_hi)

@@ -48,7 +48,7 @@ uint64_t bytes_of(const PackedScene& s, const MaterialNeeds& needs) {
     const gpu::TvtMaterial& m = s.params.materials[n];
     for (int l = needs.finest_level[size_t(n)]; l < m.mip_count; ++l) {
       const uint64_t texels = uint64_t(m.resolution >> l) * uint64_t(m.resolution >> l);
-      bytes += 4ull * (texels + (l >= 1 ? (texels + 1) / 2 : 0));  // and the level's spread chain
+      bytes += 4ull * (l >= 1 ? 2 * texels : texels);  // and the level's spread chain
     }
     bytes += 4ull * uint64_t(gpu::TVT_MATERIAL_STATS_WORDS);  // the statistics, with the 1x1 level
     if ((needs.meta_mask & (1u << n)) && m.meta_offset != gpu::TVT_NO_META)

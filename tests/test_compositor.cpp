@@ -561,9 +561,10 @@ TEST(Prefiltered, FeatureChainHoldsEachBlocksFractionAndColourMoment) {
 }
 
 // A material's words: every level's texels where the layout says, each level >= 1 followed by
-// A's spread chain (the standard deviation of A within the level-0 texels under each texel, to
-// the unorm16 rounding), then the statistics block, and nothing after it.
-TEST(Prefiltered, SpreadChainHoldsEachBlocksDeviationOfA) {
+// A's spread chain (per texel, A within the level-0 texels under it split at their mean: the
+// lower piece's share, the standard deviation of the pieces' means, each piece's half-width
+// sqrt(3 var), to the unorm8 rounding), then the statistics block, and nothing after it.
+TEST(Prefiltered, SpreadChainHoldsEachBlocksTwoPiecesOfA) {
   // A rough left half (hashed A) and a smooth right half (a gentle ramp): the local spread
   // differs several-fold, which the texture's pooled variance cannot tell apart.
   ImageRGBA8 albedo(64, 64);
@@ -580,7 +581,7 @@ TEST(Prefiltered, SpreadChainHoldsEachBlocksDeviationOfA) {
   const uint32_t res = 64, levels = 7;
   ASSERT_EQ(w.mip_count, int(levels));
   ASSERT_EQ(w.texels.size(), size_t(gpu::tvt_material_stats_offset(res, levels)) + size_t(gpu::TVT_MATERIAL_STATS_WORDS));
-  double largest = 0.0;
+  double largest = 0.0, smallest = 1.0;
   for (uint32_t level = 0; level < levels; ++level) {
     const uint32_t rl = res >> level, side = 1u << level;
     const ImageRGBA8& mip = m.albedo.mips[level];
@@ -594,25 +595,42 @@ TEST(Prefiltered, SpreadChainHoldsEachBlocksDeviationOfA) {
     ASSERT_EQ(gpu::tvt_material_spread_offset(res, level), first + rl * rl);
     const uint32_t next = level + 1 < levels ? gpu::tvt_material_level_offset(res, level + 1)
                                              : gpu::tvt_material_stats_offset(res, levels);
-    ASSERT_EQ(next - gpu::tvt_material_spread_offset(res, level), (rl * rl + 1) / 2) << "level " << level;
+    ASSERT_EQ(next - gpu::tvt_material_spread_offset(res, level), rl * rl) << "level " << level;
     for (uint32_t by = 0; by < rl; ++by)
       for (uint32_t bx = 0; bx < rl; ++bx) {
-        double sum = 0, squares = 0;
+        std::vector<double> a;
+        double mean = 0;
         for (uint32_t y = by * side; y < (by + 1) * side; ++y)
-          for (uint32_t x = bx * side; x < (bx + 1) * side; ++x) {
-            const double v = albedo.at(int(x), int(y))[3] / 255.0;
-            sum += v, squares += v * v;
-          }
-        const double n = double(side) * double(side), mean = sum / n;
-        const double sd = std::sqrt(std::max(squares / n - mean * mean, 0.0));
-        largest = std::max(largest, sd);
-        const uint32_t i = by * rl + bx;
-        const uint32_t word = w.texels[gpu::tvt_material_spread_offset(res, level) + i / 2];
-        EXPECT_NEAR(double((word >> (16 * (i & 1))) & 0xffffu) / 65535.0 / gpu::TVT_SPREAD_SCALE, sd, 0.6 / 65535 / 2)
-            << "level " << level << " texel " << bx << "," << by;
+          for (uint32_t x = bx * side; x < (bx + 1) * side; ++x) a.push_back(albedo.at(int(x), int(y))[3] / 255.0);
+        for (double v : a) mean += v / double(a.size());
+        double n[2] = {0, 0}, sum[2] = {0, 0}, squares[2] = {0, 0};
+        for (double v : a) {
+          const int k = v < mean ? 0 : 1;
+          n[k] += 1, sum[k] += v, squares[k] += v * v;
+        }
+        double piece_mean[2], half[2];
+        for (int k = 0; k < 2; ++k) {
+          piece_mean[k] = n[k] > 0 ? sum[k] / n[k] : 0.0;
+          half[k] = n[k] > 0 ? std::sqrt(std::max(0.0, 3.0 * (squares[k] / n[k] - piece_mean[k] * piece_mean[k]))) : 0.0;
+        }
+        const double p = n[0] / double(a.size());
+        const double delta = n[0] > 0 && n[1] > 0 ? std::sqrt(p * (1 - p)) * (piece_mean[1] - piece_mean[0]) : 0.0;
+        // The pieces keep A's variance: delta^2 + the pieces' own variances.
+        double var = 0;
+        for (double v : a) var += (v - mean) * (v - mean) / double(a.size());
+        EXPECT_NEAR(delta * delta + p * half[0] * half[0] / 3 + (1 - p) * half[1] * half[1] / 3, var, 1e-9);
+        const uint32_t word = w.texels[gpu::tvt_material_spread_offset(res, level) + by * rl + bx];
+        const std::string where = "level " + std::to_string(level) + " texel " + std::to_string(bx) + "," + std::to_string(by);
+        const double s = gpu::TVT_SPREAD_SCALE, q = 0.501 / 255;  // half a step (ties either way)
+        EXPECT_NEAR((word & 0xffu) / 255.0, p, q) << where;
+        EXPECT_NEAR(((word >> 8) & 0xffu) / 255.0 / s, delta, q / s) << where;
+        EXPECT_NEAR(((word >> 16) & 0xffu) / 255.0 / s, half[0], q / s) << where;
+        EXPECT_NEAR((word >> 24) / 255.0 / s, half[1], q / s) << where;
+        if (level == 3) largest = std::max(largest, std::sqrt(var)), smallest = std::min(smallest, std::sqrt(var));
       }
   }
-  EXPECT_GT(largest, 0.05);  // the material's A varies: the chain is not all zeros
+  EXPECT_GT(largest, 0.2);  // the rough half
+  EXPECT_LT(smallest, 0.05);  // the smooth half: a local spread several-fold smaller
 }
 
 // Features larger than the footprint, past the end of the FBPB fade (their expectation): the

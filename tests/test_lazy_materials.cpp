@@ -44,9 +44,9 @@ TEST_F(LazyMaterials, SceneLoadReadsHeadersOnly) {
   auto packed = pack_scene(a, {});
   ASSERT_TRUE(packed.ok());
   EXPECT_EQ(packed->loaded_mask(), 0u);
-  // Texels of every level, A's spread chain (two texels a word, levels >= 1), statistics.
+  // Texels of every level, A's spread chain (a word per texel of levels >= 1), statistics.
   EXPECT_EQ(packed->texel_words, size_t(2 * (1024 + 256 + 64 + 16 + 4 + 1) + (256 + 64 + 16 + 4 + 1)) +
-                                     size_t(2 * (128 + 32 + 8 + 2 + 1) + (32 + 8 + 2 + 1)) +
+                                     size_t(2 * (256 + 64 + 16 + 4 + 1) + (64 + 16 + 4 + 1)) +
                                      3 * size_t(gpu::TVT_MATERIAL_STATS_WORDS));
   EXPECT_EQ(a.materials->stats().reads, 0u);
 }
@@ -167,7 +167,7 @@ TEST_F(LazyMaterials, ConcurrentFirstUseLoadsOnce) {
       threads.emplace_back([&, t] {
         auto r = a.materials->get(1);
         if (r) seen[size_t(t)] = r.value().get();
-        if (packed->load(0b110).ok() && packed->texels(1).size() == 1365u + 171u + size_t(gpu::TVT_MATERIAL_STATS_WORDS)) ++ok;
+        if (packed->load(0b110).ok() && packed->texels(1).size() == 1365u + 341u + size_t(gpu::TVT_MATERIAL_STATS_WORDS)) ++ok;
       });
   }
   EXPECT_EQ(ok.load(), 8);

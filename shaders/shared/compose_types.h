@@ -20,18 +20,21 @@ TVT_CONST int TVT_MODE_FBPB_DPT = 4;  // FBPB features over a DPT-shaped non-fea
 
 // A material's texel words (texel_offset): its mip chain, level l = 0 .. log2 R of
 // (R >> l)^2 RGBA8 texels, each level l >= 1 followed by its spread chain, then the statistics
-// block. The spread chain of level l holds, per level-l texel, the standard deviation of A
-// within the 2^l x 2^l level-0 texels under it, unorm16 of TVT_SPREAD_SCALE times it (A's
-// standard deviation is at most 1/2), two texels a word (texel i in the low half of word i / 2
-// when i is even), (R >> l)^2 / 2 words (one for the 1x1 level). Read by the prefiltered
-// strategy: A's spread within what a footprint covers, rather than the texture's mean.
+// block. The spread chain of level l holds one word per level-l texel describing A within the
+// 2^l x 2^l level-0 texels under it as two pieces, the texels below the block's mean A and the
+// others: byte 0 the share p of the lower piece, byte 1 the standard deviation delta of the
+// two-point distribution of the pieces' means (the lower at mean - delta sqrt((1-p)/p), the
+// upper at mean + delta sqrt(p/(1-p))), bytes 2 and 3 each piece's half-width sqrt(3 var)
+// (its texels' spread about the piece's mean); unorm8, delta and the half-widths of
+// TVT_SPREAD_SCALE times the value (each is at most 1/2). Read by the prefiltered strategy:
+// A's distribution within what a footprint covers, rather than the texture's mean spread.
 TVT_CONST float TVT_SPREAD_SCALE = 2.0;
 // Words before level `level` (its first texel), relative to texel_offset: the closed forms of
-// sum_{j<l} (R >> j)^2 = (R^2 - r^2) * 4/3 and of the spread words sum_{1<=j<l} (R >> j)^2 / 2.
+// sum_{j<l} (R >> j)^2 = (R^2 - r^2) * 4/3 and of the spread words sum_{1<=j<l} (R >> j)^2.
 TVT_FN uint tvt_material_level_offset(uint res, uint level) {
   if (level == 0u) return 0u;
   const uint rl = res >> level;
-  return (res * res - rl * rl) / 3u * 4u + (res * res / 4u - rl * rl) / 3u * 2u;
+  return (res * res - rl * rl) / 3u * 4u + (res * res / 4u - rl * rl) / 3u * 4u;
 }
 // First word of level `level`'s spread chain (level >= 1), relative to texel_offset.
 TVT_FN uint tvt_material_spread_offset(uint res, uint level) {
