@@ -429,11 +429,14 @@ struct Ctx {
         fade_max = std::max(fade_max, present);
         if (present <= 0.0) continue;
         const double q = clamp01(safe_pow(plain, double(L.exp_p) / std::max(double(L.exp_r), 1e-6)));  // P(r^R <= p^P)
-        const double expected = patch_moment(L.expect, q), weight = present * (1.0 - exact);
+        double expected = patch_moment(L.expect, q);
+        double second = patch_moment(L.expect_sq, q);
+        const double weight = present * (1.0 - exact);
         const double point = exact > 0.0 ? present * exact * patch_value(m, L, x_fp, y_fp) : 0.0;
+        if (weight > 0.0) patch_samples(m, L, x_fp, y_fp, footprint, expected, second);
         settled += point;
         mean += weight * expected;
-        var += weight * weight * std::max(patch_moment(L.expect_sq, q) - expected * expected, 0.0);
+        var += weight * weight * std::max(second - expected * expected, 0.0);
         span += weight;  // b is settled + mean here, read by blend_map_of_patches
         h += (point + weight * expected) * L.height_h;
         continue;
@@ -459,6 +462,30 @@ struct Ctx {
     // When even the largest layer's patches are too small, fall back to the plain weight.
     b_out = fade_max * b + (1.0 - fade_max) * blend_map(plain, height_a, m.blend_sharpness);
     h_out = h;
+  }
+
+  // Prefiltered DPT: while few of layer L's patches fall in the footprint, the mean and second
+  // moment of its actual values at k x k points spread evenly over it (k = 2 while a patch
+  // spans the footprint, else 4) replace the expectation over random corner masks, faded to
+  // it between TVT_PATCH_SAMPLES_LO and _HI patches a side (compose_types.h): the footprint's
+  // own few decisions, which the expectation over many does not know.
+  void patch_samples(const gpu::TvtMaterial& m, const gpu::TvtDptLayer& L, int64_t x_fp, int64_t y_fp, double footprint,
+                     double& mean, double& second) const {
+    const double patches = footprint / std::max(double(L.patch_texels), 1e-6);
+    const double g = ramp(patches, double(gpu::TVT_PATCH_SAMPLES_LO), double(gpu::TVT_PATCH_SAMPLES_HI));
+    if (g >= 1.0) return;
+    const int k = patches <= 1.0 ? 2 : 4;
+    double s1 = 0.0, s2 = 0.0;
+    for (int j = 0; j < k; ++j)
+      for (int i = 0; i < k; ++i) {
+        const int64_t dx = std::llround(((i + 0.5) / k - 0.5) * footprint * 256.0);
+        const int64_t dy = std::llround(((j + 0.5) / k - 0.5) * footprint * 256.0);
+        const double v = patch_value(m, L, x_fp + dx, y_fp + dy);
+        s1 += v, s2 += v * v;
+      }
+    s1 /= double(k * k), s2 /= double(k * k);
+    mean = (1.0 - g) * s1 + g * mean;
+    second = (1.0 - g) * s2 + g * second;
   }
 
   // One DPT layer's w (eq 4.1-4.3) at a terrain position.

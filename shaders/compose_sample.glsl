@@ -415,6 +415,28 @@ float patch_value(int n, int k, int64_t x_fp, int64_t y_fp) {
   return safe_pow(bl, P.materials[n].dpt[k].exp_w);
 }
 
+// Prefiltered DPT: the layer's actual values at k x k points over the footprint while its
+// patches are few there (reference_compositor.cpp patch_samples).
+void patch_samples(int n, int k, int64_t x_fp, int64_t y_fp, float footprint, inout float mean, inout float second) {
+  const float patches = footprint / max(P.materials[n].dpt[k].patch_texels, 1e-6);
+  const float g = ramp(patches, TVT_PATCH_SAMPLES_LO, TVT_PATCH_SAMPLES_HI);
+  if (g >= 1.0) return;
+  const int kk = patches <= 1.0 ? 2 : 4;
+  float s1 = 0.0, s2 = 0.0;
+  for (int j = 0; j < kk; ++j)
+    for (int i = 0; i < kk; ++i) {
+      const int64_t dx = int64_t(round(((float(i) + 0.5) / float(kk) - 0.5) * footprint * 256.0));
+      const int64_t dy = int64_t(round(((float(j) + 0.5) / float(kk) - 0.5) * footprint * 256.0));
+      const float v = patch_value(n, k, x_fp + dx, y_fp + dy);
+      s1 += v;
+      s2 += v * v;
+    }
+  s1 /= float(kk * kk);
+  s2 /= float(kk * kk);
+  mean = mix(s1, mean, g);
+  second = mix(s2, second, g);
+}
+
 // DPT eq 4.1-4.4, Algorithms 2-3. Prefiltered: as reference_compositor.cpp dpt().
 void dpt(int n, int64_t x_fp, int64_t y_fp, float footprint, float plain, float height_a, bool prefiltered, vec4 a_spread,
          out float b_out, out float h_out, out float dev) {
@@ -430,11 +452,13 @@ void dpt(int n, int64_t x_fp, int64_t y_fp, float footprint, float plain, float 
       fade_max = max(fade_max, present);
       if (present <= 0.0) continue;
       const float q = clamp01(safe_pow(plain, P.materials[n].dpt[k].exp_p / max(P.materials[n].dpt[k].exp_r, 1e-6)));
-      const float expected = patch_expectation(n, k, q), weight = present * (1.0 - exact);
+      float expected = patch_expectation(n, k, q), second = patch_second_moment(n, k, q);
+      const float weight = present * (1.0 - exact);
       const float point = exact > 0.0 ? present * exact * patch_value(n, k, x_fp, y_fp) : 0.0;
+      if (weight > 0.0) patch_samples(n, k, x_fp, y_fp, footprint, expected, second);
       settled += point;
       mean += weight * expected;
-      var += weight * weight * max(patch_second_moment(n, k, q) - expected * expected, 0.0);
+      var += weight * weight * max(second - expected * expected, 0.0);
       span += weight;  // b is settled + mean here, read by blend_map_of_patches
       h += (point + weight * expected) * P.materials[n].dpt[k].height_h;
       continue;

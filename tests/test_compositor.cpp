@@ -467,6 +467,38 @@ TEST(Prefiltered, FollowsTheSpreadOfThePatchesUnderASharpBlendMap) {
   }
 }
 
+// Patches about as large as the footprint (16-texel patches under mip-4 and mip-5 texels): a
+// texel holds one to four patch cells, so the truth is those cells' own corner decisions, which
+// the expectation over random decisions misses by the size of one patch's share. The layer's
+// values at points over the footprint follow them.
+TEST(Prefiltered, FollowsTheFootprintsOwnPatchesWhereTheyAreFew) {
+  SceneAssets a = dpt_scene(16, 0.5f);
+  ImageRGBA8 spread(16, 16);  // A varies (every value once, scattered), as a height map does
+  for (int i = 0; i < 256; ++i) {
+    uint8_t* t = spread.at(i % 16, i / 16);
+    t[0] = 0, t[1] = 250, t[2] = 0, t[3] = uint8_t((i * 97 + 13) % 256);
+  }
+  a.materials->edit(1).albedo = build_mip_chain(spread);
+  const PackedScene direct = pack(a), pre = pack(a, prefiltered_options());
+  for (const uint32_t mip : {4u, 5u}) {
+    double err = 0, spread = 0, truth_mean = 0;
+    const int n = 12;
+    std::vector<double> truths;
+    for (int64_t y = 0; y < n; ++y)
+      for (int64_t x = 0; x < n; ++x) {
+        const double truth = ground_truth_texel(direct, mip, x + 3, y + 5).g;
+        truths.push_back(truth);
+        truth_mean += truth / (n * n);
+        err += std::abs(compose_texel_reference(pre, mip, x + 3, y + 5).g - truth) / (n * n);
+      }
+    for (double t : truths) spread += std::abs(t - truth_mean) / (n * n);
+    // The texels differ (0.1 and more from their mean: the decisions show); the expectation
+    // alone is off by about that much, the footprint's own patches by far less.
+    EXPECT_GT(spread, 0.08) << "mip " << mip;
+    EXPECT_LT(err, 0.3 * spread) << "mip " << mip << ": mean error " << err << ", truth's spread " << spread;
+  }
+}
+
 // Where the footprint is below one patch the prefiltered texel is the exact (direct) one.
 TEST(Prefiltered, IsExactWhereAPatchCoversTheFootprint) {
   auto a = dpt_scene(256, 0.5f);
