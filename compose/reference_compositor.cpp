@@ -157,12 +157,24 @@ struct Ctx {
     return glm::dvec4(w & 0xffu, (w >> 8) & 0xffu, (w >> 16) & 0xffu, w >> 24) / 255.0;
   }
 
-  glm::dvec4 bilinear(const gpu::TvtMaterial& m, int level, double u, double v) const {
+  // The level-`level` texels around tile-local material texel (u, v) a bilinear fetch blends:
+  // the first (i, j) and the fractions towards the next. The texture, the feature statistics
+  // chain and the spread chain share it.
+  struct Cell {
+    int64_t i, j;
+    double fx, fy;
+  };
+  static Cell bilinear_cell(int level, double u, double v) {
     const double scale = std::ldexp(1.0, -level);
     const double ul = u * scale - 0.5, vl = v * scale - 0.5;
     const double fi = std::floor(ul), fj = std::floor(vl);
-    const double fx = ul - fi, fy = vl - fj;
-    const int64_t i = int64_t(fi), j = int64_t(fj);
+    return {int64_t(fi), int64_t(fj), ul - fi, vl - fj};
+  }
+
+  glm::dvec4 bilinear(const gpu::TvtMaterial& m, int level, double u, double v) const {
+    const Cell c = bilinear_cell(level, u, v);
+    const int64_t i = c.i, j = c.j;
+    const double fx = c.fx, fy = c.fy;
     return (texel(m, level, i, j) * (1 - fx) + texel(m, level, i + 1, j) * fx) * (1 - fy) +
            (texel(m, level, i, j + 1) * (1 - fx) + texel(m, level, i + 1, j + 1) * fx) * fy;
   }
@@ -237,11 +249,9 @@ struct Ctx {
   FeatureStats feature_stats(const gpu::TvtMaterial& m, double u, double v, double lod) const {
     const Levels L = trilinear_levels(m, lod);
     auto bilerp = [&](int level) {
-      const double scale = std::ldexp(1.0, -level);
-      const double ul = u * scale - 0.5, vl = v * scale - 0.5;
-      const double fi = std::floor(ul), fj = std::floor(vl);
-      const double fx = ul - fi, fy = vl - fj;
-      const int64_t i = int64_t(fi), j = int64_t(fj);
+      const Cell c = bilinear_cell(level, u, v);
+      const int64_t i = c.i, j = c.j;
+      const double fx = c.fx, fy = c.fy;
       FeatureStats r = feature_texel(m, level, i, j) * ((1 - fx) * (1 - fy));
       r += feature_texel(m, level, i + 1, j) * (fx * (1 - fy));
       r += feature_texel(m, level, i, j + 1) * ((1 - fx) * fy);
@@ -319,11 +329,9 @@ struct Ctx {
   glm::dvec4 spread(const gpu::TvtMaterial& m, double u, double v, double lod) const {
     const Levels L = trilinear_levels(m, lod);
     auto bilerp = [&](int level) {
-      const double scale = std::ldexp(1.0, -level);
-      const double ul = u * scale - 0.5, vl = v * scale - 0.5;
-      const double fi = std::floor(ul), fj = std::floor(vl);
-      const double fx = ul - fi, fy = vl - fj;
-      const int64_t i = int64_t(fi), j = int64_t(fj);
+      const Cell c = bilinear_cell(level, u, v);
+      const int64_t i = c.i, j = c.j;
+      const double fx = c.fx, fy = c.fy;
       return (spread_texel(m, level, i, j) * (1 - fx) + spread_texel(m, level, i + 1, j) * fx) * (1 - fy) +
              (spread_texel(m, level, i, j + 1) * (1 - fx) + spread_texel(m, level, i + 1, j + 1) * fx) * fy;
     };

@@ -95,6 +95,18 @@ float material_stat(int n, int i) {
   return uintBitsToFloat(material_texels[P.materials[n].texel_offset + at + uint(i)]);
 }
 
+// The level-`level` texels around tile-local material texel (u, v) a bilinear fetch blends: the
+// first (i, j) and the fractions towards the next (reference_compositor.cpp bilinear_cell).
+void bilinear_cell(int level, float u, float v, out int i, out int j, out float fx, out float fy) {
+  const float scale = exp2(-float(level));
+  const float ul = u * scale - 0.5, vl = v * scale - 0.5;
+  const float fi = floor(ul), fj = floor(vl);
+  fx = ul - fi;
+  fy = vl - fj;
+  i = int(fi);
+  j = int(fj);
+}
+
 // A within the level-0 texels under level-`level` texel (x, y) as (p, delta, h_lo, h_hi) (the
 // spread chain, compose_types.h); none at level 0 (reference_compositor.cpp spread_texel).
 vec4 spread_texel(int n, int level, int x, int y) {
@@ -108,11 +120,9 @@ vec4 spread_texel(int n, int level, int x, int y) {
 
 vec4 spread_bilinear(int n, int level, float u, float v) {
   if (level == 0) return vec4(0.0);
-  const float scale = exp2(-float(level));
-  const float ul = u * scale - 0.5, vl = v * scale - 0.5;
-  const float fi = floor(ul), fj = floor(vl);
-  const float fx = ul - fi, fy = vl - fj;
-  const int i = int(fi), j = int(fj);
+  int i, j;
+  float fx, fy;
+  bilinear_cell(level, u, v, i, j, fx, fy);
   return mix(mix(spread_texel(n, level, i, j), spread_texel(n, level, i + 1, j), fx),
              mix(spread_texel(n, level, i, j + 1), spread_texel(n, level, i + 1, j + 1), fx), fy);
 }
@@ -130,11 +140,9 @@ vec4 material_a_stats(int n, float lod) {
 }
 
 vec4 material_bilinear(int n, int level, float u, float v) {
-  const float scale = exp2(-float(level));
-  const float ul = u * scale - 0.5, vl = v * scale - 0.5;
-  const float fi = floor(ul), fj = floor(vl);
-  const float fx = ul - fi, fy = vl - fj;
-  const int i = int(fi), j = int(fj);
+  int i, j;
+  float fx, fy;
+  bilinear_cell(level, u, v, i, j, fx, fy);
   return mix(mix(material_texel(n, level, i, j), material_texel(n, level, i + 1, j), fx),
              mix(material_texel(n, level, i, j + 1), material_texel(n, level, i + 1, j + 1), fx), fy);
 }
@@ -299,11 +307,9 @@ void feature_texel(int n, int level, int x, int y, out vec2 df, out vec4 moment)
   moment = unpackSnorm4x8(w1) / TVT_META_MOMENT_SCALE;
 }
 void feature_bilinear(int n, int level, float u, float v, out vec2 df, out vec4 moment) {
-  const float scale = exp2(-float(level));
-  const float ul = u * scale - 0.5, vl = v * scale - 0.5;
-  const float fi = floor(ul), fj = floor(vl);
-  const float fx = ul - fi, fy = vl - fj;
-  const int i = int(fi), j = int(fj);
+  int i, j;
+  float fx, fy;
+  bilinear_cell(level, u, v, i, j, fx, fy);
   vec2 d00, d10, d01, d11;
   vec4 m00, m10, m01, m11;
   feature_texel(n, level, i, j, d00, m00);
