@@ -12,6 +12,59 @@
 
 namespace tvt {
 
+namespace {
+
+// Conservative forms of compose_sample.glsl's ramp(): whether it can be above 0 / below 1 at
+// v, the shader's float v being within a relative `slack` of the host's double.
+constexpr double k_slack = 1e-4;
+bool ramp_may_be_positive(double v, double lo, double hi) {
+  const double v_hi = v + std::abs(v) * k_slack + 1e-30;
+  return hi <= lo ? v_hi >= lo : v_hi > lo;
+}
+bool ramp_may_be_below_one(double v, double lo, double hi) {
+  const double v_lo = v - std::abs(v) * k_slack - 1e-30;
+  return hi <= lo ? v_lo < lo : v_lo < hi;
+}
+
+}  // namespace
+
+uint32_t prefiltered_parts(const gpu::TvtComposeParams& p, uint32_t mip) {
+  // compose.comp's footprint: 2^mip level-0 texels over at most 2^mip sub-samples a side.
+  const double s = std::min(std::max(double(p.supersample), 1.0), std::ldexp(1.0, int(std::min(mip, 62u))));
+  const double footprint = std::max(std::ldexp(1.0, int(std::min(mip, 62u))) / s, 1.0 / 256.0);
+  uint32_t parts = 0;
+  for (int n = 1; n < p.material_count && n < gpu::TVT_MAX_MATERIALS; ++n) {
+    const gpu::TvtMaterial& m = p.materials[n];
+    bool finite = std::isfinite(double(m.fbpb_fade_lo)) && std::isfinite(double(m.fbpb_fade_hi)) && m.period_fp > 0;
+    for (int k = 0; k < std::min(m.dpt_layer_count, gpu::TVT_MAX_DPT_LAYERS); ++k)
+      finite = finite && std::isfinite(double(m.dpt[k].patch_texels));
+    if (!finite) return gpu::TVT_PART_ALL;  // not a validated scene: keep every part
+    if (m.mode == gpu::TVT_MODE_DPT || m.mode == gpu::TVT_MODE_FBPB_DPT)
+      for (int k = 0; k < std::min(m.dpt_layer_count, gpu::TVT_MAX_DPT_LAYERS); ++k) {  // dpt()
+        const double texels = m.dpt[k].patch_texels;
+        if (!ramp_may_be_positive(texels, m.dpt_fade_lo, m.dpt_fade_hi)) continue;  // absent at every footprint
+        const double ratio = texels / footprint;
+        if (ramp_may_be_positive(ratio, p.prefilter_patch_lo, p.prefilter_patch_hi)) parts |= gpu::TVT_PART_DPT_POINT;
+        if (ramp_may_be_below_one(ratio, p.prefilter_patch_lo, p.prefilter_patch_hi)) {
+          parts |= gpu::TVT_PART_DPT_EXPECT;
+          const double patches = footprint / std::max(texels, 1e-6);
+          if (ramp_may_be_below_one(patches, gpu::TVT_PATCH_SAMPLES_LO, gpu::TVT_PATCH_SAMPLES_HI))
+            parts |= gpu::TVT_PART_DPT_SAMPLES;
+        }
+      }
+    if (m.mode == gpu::TVT_MODE_FBPB || m.mode == gpu::TVT_MODE_FBPB_DPT) {  // compose_sample()'s FBPB branch
+      const auto lod_at = [&](double f) { return std::log2(f * double(m.resolution) * 256.0 / double(m.period_fp)); };
+      const double lod = lod_at(footprint), fade_end = std::max(m.fbpb_fade_hi, m.fbpb_fade_lo);
+      const double lod_slack = 1e-3;  // float log2 against double
+      if (lod - lod_slack < fade_end + 1.0) parts |= gpu::TVT_PART_FEATURES;                 // fade > 0
+      if (lod + lod_slack > fade_end &&                                                      // fade < 1
+          ramp_may_be_below_one(lod_at(1.0) - lod_slack, m.fbpb_fade_lo, m.fbpb_fade_hi))  // fade0 > 0
+        parts |= gpu::TVT_PART_FEATURE_EXPECT;
+    }
+  }
+  return parts;
+}
+
 GpuComposer::~GpuComposer() = default;
 
 Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, const PackedScene& scene,
@@ -31,6 +84,7 @@ Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, c
   if (!c->params_buffer_) return context.status().error();
   std::memcpy(c->params_buffer_.mapped(), &c->params_, sizeof(c->params_));
   c->records_in_flight_ = std::max(options.records_in_flight, 1u);
+  c->specialise_ = options.specialise;
   c->materials_ = std::make_unique<MaterialUploader>(context, scene, c->records_in_flight_);
   if (options.poison_materials)
     context.run_commands([m = c->materials_.get()](VkCommandBuffer cmd) { m->fill(cmd, 0xffffffffu); });  // by value: may be deferred
@@ -62,13 +116,10 @@ Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, c
     });
   }
 
-  const vk::ComputeBinding bindings[] = {
-      {TVT_BIND_COMPOSE_PARAMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}, {TVT_BIND_MATERIAL_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-      {TVT_BIND_META_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},    {TVT_BIND_WEIGHTS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-      {TVT_BIND_PAGE_JOBS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},      {TVT_BIND_PAGE_OUTPUT, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
-  };
-  c->pipeline_ = context.create_compute_pipeline(shaders::compose_comp(), bindings, sizeof(gpu::TvtComposePush));
-  c->descriptors_ = context.allocate_descriptor_set(c->pipeline_);
+  // The variants the parameters need for any page (others are made on first use).
+  const vk::ComputePipeline* pipeline = c->variant(false, gpu::TVT_PART_ALL);
+  if (!pipeline) return context.status().error();
+  c->descriptors_ = context.allocate_descriptor_set(*pipeline);
   c->descriptors_.write_buffer(TVT_BIND_COMPOSE_PARAMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->params_buffer_);
   c->descriptors_.write_buffer(TVT_BIND_MATERIAL_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->materials_->texels());
   c->descriptors_.write_buffer(TVT_BIND_META_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->materials_->meta());
@@ -77,6 +128,40 @@ Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, c
   c->descriptors_.write_storage_image(TVT_BIND_PAGE_OUTPUT, *c->target_);
   if (auto st = context.status(); !st) return st.error();  // a failed Vulkan call (c frees what was made)
   return c;
+}
+
+const vk::ComputePipeline* GpuComposer::variant(bool prefiltered, uint32_t parts) {
+  uint32_t modes = 0xffffffffu;
+  bool hex = true;
+  if (specialise_) {
+    modes = 0;
+    hex = false;
+    for (int n = 0; n < params_.material_count; ++n) {
+      if (n > 0) modes |= 1u << uint32_t(params_.materials[n].mode);
+      hex = hex || params_.materials[n].hex_edge > 0;
+    }
+  } else {
+    prefiltered = true;  // compose.comp decides per page
+    parts = gpu::TVT_PART_ALL;
+  }
+  for (const Variant& v : variants_)
+    if (v.modes == modes && v.hex == hex && v.prefiltered == prefiltered && v.parts == parts) return &v.pipeline;
+  // Every variant has the same bindings, so one descriptor set serves them all.
+  static constexpr vk::ComputeBinding bindings[] = {
+      {TVT_BIND_COMPOSE_PARAMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}, {TVT_BIND_MATERIAL_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+      {TVT_BIND_META_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},    {TVT_BIND_WEIGHTS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+      {TVT_BIND_PAGE_JOBS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},      {TVT_BIND_PAGE_OUTPUT, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE},
+  };
+  const vk::SpecConstant constants[] = {
+      {TVT_COMPOSE_SPEC_MODES, modes},
+      {TVT_COMPOSE_SPEC_HEX, hex ? 1u : 0u},
+      {TVT_COMPOSE_SPEC_PREFILTERED, prefiltered ? 1u : 0u},
+      {TVT_COMPOSE_SPEC_PARTS, parts}};
+  vk::ComputePipeline pipeline =
+      context_->create_compute_pipeline(shaders::compose_comp(), bindings, sizeof(gpu::TvtComposePush), constants);
+  if (pipeline.handle() == VK_NULL_HANDLE) return nullptr;
+  variants_.push_back(Variant{modes, hex, prefiltered, parts, std::move(pipeline)});
+  return &variants_.back().pipeline;
 }
 
 void GpuComposer::set_params(const gpu::TvtComposeParams& params) {
@@ -93,22 +178,42 @@ Status GpuComposer::record(VkCommandBuffer cmd, std::span<const PageJob> jobs) {
   const uint32_t job_offset = uint32_t(records_++ % records_in_flight_) * slots_;
   auto* dst = static_cast<gpu::TvtPageJob*>(job_buffer_.mapped()) + job_offset;
   MaterialNeeds needed;  // what any of the pages reads
-  for (size_t i = 0; i < jobs.size(); ++i) {
-    TVT_CHECK(jobs[i].slot < slots_);
-    const uint32_t mask = culling_ ? culler_->mask(jobs[i].page) : 0xffffffffu;
-    dst[i] = gpu::TvtPageJob{jobs[i].page.mip, jobs[i].page.x, jobs[i].page.y, jobs[i].slot, mask, 0u, 0u, 0u};
-    if (params_.pattern == gpu::TVT_COMPOSE_PATTERN_NONE) needed.merge(culler_->needs(jobs[i].page, mask));
+  // One dispatch per pipeline variant: direct pages (mip 0, or every mip under the direct and
+  // supersampled strategies), then prefiltered ones grouped by the parts their mip can reach.
+  // A job names its slot, so the order is free.
+  const auto key = [&](const PageJob& j) -> uint64_t {
+    if (!specialise_ || params_.prefiltered == 0 || j.page.mip == 0) return 0;
+    return 1 + uint64_t(prefiltered_parts(params_, j.page.mip));
+  };
+  std::vector<std::pair<uint64_t, uint32_t>> order;  // (variant key, job)
+  order.reserve(jobs.size());
+  for (uint32_t i = 0; i < jobs.size(); ++i) order.emplace_back(key(jobs[i]), i);
+  std::stable_sort(order.begin(), order.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  for (size_t i = 0; i < order.size(); ++i) {
+    const PageJob& j = jobs[order[i].second];
+    TVT_CHECK(j.slot < slots_);
+    const uint32_t mask = culling_ ? culler_->mask(j.page) : 0xffffffffu;
+    dst[i] = gpu::TvtPageJob{j.page.mip, j.page.x, j.page.y, j.slot, mask, 0u, 0u, 0u};
+    if (params_.pattern == gpu::TVT_COMPOSE_PATTERN_NONE) needed.merge(culler_->needs(j.page, mask));
   }
   // Also with no jobs: the per-record counters restart.
   if (auto s = materials_->record(cmd, needed); !s) return s;
-  if (jobs.empty()) return Ok{};
-  context_->fn().vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.handle());
-  const VkDescriptorSet set = descriptors_.handle();
-  context_->fn().vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.layout(), 0, 1, &set, 0, nullptr);
-  const gpu::TvtComposePush push{job_offset, uint32_t(jobs.size())};
-  context_->fn().vkCmdPushConstants(cmd, pipeline_.layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
   const uint32_t groups = (slot_texels_ + gpu::TVT_COMPOSE_GROUP - 1) / gpu::TVT_COMPOSE_GROUP;
-  context_->fn().vkCmdDispatch(cmd, groups, groups, uint32_t(jobs.size()));
+  for (size_t first = 0; first < order.size();) {
+    size_t end = first;
+    while (end < order.size() && order[end].first == order[first].first) ++end;
+    const uint64_t k = order[first].first;
+    const vk::ComputePipeline* pipeline = k == 0 ? variant(false, gpu::TVT_PART_ALL) : variant(true, uint32_t(k - 1));
+    if (!pipeline) return context_->status().error();
+    context_->fn().vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline->handle());
+    const VkDescriptorSet set = descriptors_.handle();
+    context_->fn().vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline->layout(), 0, 1, &set, 0,
+                                           nullptr);
+    const gpu::TvtComposePush push{job_offset + uint32_t(first), uint32_t(end - first)};
+    context_->fn().vkCmdPushConstants(cmd, pipeline->layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
+    context_->fn().vkCmdDispatch(cmd, groups, groups, uint32_t(end - first));
+    first = end;
+  }
   return Ok{};
 }
 

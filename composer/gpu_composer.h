@@ -8,6 +8,7 @@
 // uploading everything at create().
 #pragma once
 #include <cstdint>
+#include <deque>
 #include <memory>
 #include <span>
 #include <vector>
@@ -39,7 +40,16 @@ struct GpuComposerOptions {
   // STORAGE usage; e.g. the VT's cache, owned by the caller and outliving the composer)
   // instead of an image of its own.
   vk::Image* target = nullptr;
+  // false: one pipeline with every path of compose.comp for all pages, instead of variants
+  // specialised to the scene and each page's mip (tests: the variants change no byte).
+  bool specialise = true;
 };
+
+// Which parts of the prefiltered composition (TVT_PART_* bits, compose_types.h) a page of mip
+// `mip` can reach under `params`: a cleared bit is a part whose weight is zero for every
+// material at that footprint, so the pipeline for that mip leaves it out. Conservative (a bit
+// is kept where float rounding could decide either way); all bits for unvalidated numbers.
+uint32_t prefiltered_parts(const gpu::TvtComposeParams& params, uint32_t mip);
 
 class GpuComposer {
  public:
@@ -103,13 +113,27 @@ class GpuComposer {
   uint32_t slot_texels_ = 0;
   uint32_t records_in_flight_ = 1;
   uint64_t records_ = 0;
+  bool specialise_ = true;
   // The const buffer accessors complete the lazy upload through it (a cache, not state).
   std::unique_ptr<MaterialUploader> materials_;
   vk::Buffer params_buffer_, job_buffer_, readback_buffer_;
   vk::Image own_output_;            // unless GpuComposerOptions::target
   vk::Image* target_ = nullptr;     // what compose.comp writes
-  vk::ComputePipeline pipeline_;
-  vk::DescriptorSet descriptors_;
+  // compose.comp specialised to what the parameters can take (compose_types.h,
+  // TVT_COMPOSE_SPEC_*): the modes present, hex-tiling, direct or prefiltered pages, and which
+  // parts of the prefiltered maths a page's mip can reach (prefiltered_parts()). Made on first
+  // use and kept; a batch of mixed mips is one dispatch per variant.
+  struct Variant {
+    uint32_t modes = 0;
+    bool hex = false;
+    bool prefiltered = false;
+    uint32_t parts = 0;  // TVT_PART_*
+    vk::ComputePipeline pipeline;
+  };
+  // The variant for the current parameters; nullptr after a failed Vulkan call.
+  const vk::ComputePipeline* variant(bool prefiltered, uint32_t parts);
+  std::deque<Variant> variants_;  // a deque: variant() pointers stay valid as it grows
+  vk::DescriptorSet descriptors_;  // from the first variant's (identically defined) layout
 };
 
 }  // namespace tvt

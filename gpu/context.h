@@ -155,8 +155,10 @@ class Context {
   // failed allocation (status()): call this first where a user's numbers set the size.
   Status check_image_fits(VkFormat format, uint32_t width, uint32_t height, uint32_t layers, VkImageUsageFlags usage,
                           const std::string& what) const;
+  // `constants`: specialization constants of the compute stage (constant_id, 32-bit value).
   ComputePipeline create_compute_pipeline(std::span<const uint32_t> spirv, std::span<const ComputeBinding> bindings,
-                                          uint32_t push_constant_bytes = 0);
+                                          uint32_t push_constant_bytes = 0,
+                                          std::span<const SpecConstant> constants = {});
   DescriptorSet allocate_descriptor_set(const ComputePipeline& pipeline);
   // Needs dynamicRendering (Vulkan 1.3 core, always on for 1.3 devices; latched as an error
   // otherwise).

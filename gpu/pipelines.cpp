@@ -8,7 +8,8 @@ namespace tvt::vk {
 
 ComputePipeline Context::create_compute_pipeline(std::span<const uint32_t> spirv,
                                                  std::span<const ComputeBinding> bindings,
-                                                 uint32_t push_constant_bytes) {
+                                                 uint32_t push_constant_bytes,
+                                                 std::span<const SpecConstant> constants) {
   TVT_CHECK(!spirv.empty());
   TVT_CHECK(push_constant_bytes % 4 == 0);
   if (!status()) return {};  // nothing more is made after a failed call
@@ -43,6 +44,15 @@ ComputePipeline Context::create_compute_pipeline(std::span<const uint32_t> spirv
   cpci.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
   cpci.stage.module = module;
   cpci.stage.pName = "main";
+  std::vector<VkSpecializationMapEntry> entries;
+  std::vector<uint32_t> values;
+  for (const SpecConstant& c : constants) {
+    entries.push_back({c.id, uint32_t(values.size() * sizeof(uint32_t)), sizeof(uint32_t)});
+    values.push_back(c.value);
+  }
+  const VkSpecializationInfo spec{uint32_t(entries.size()), entries.data(), values.size() * sizeof(uint32_t),
+                                  values.data()};
+  if (!entries.empty()) cpci.stage.pSpecializationInfo = &spec;
   cpci.layout = p.layout_;
   const VkResult r = fn_.vkCreateComputePipelines(device_, VK_NULL_HANDLE, 1, &cpci, alloc_, &p.pipeline_);
   fn_.vkDestroyShaderModule(device_, module, alloc_);

@@ -19,6 +19,13 @@ struct ComputeBinding {
   VkDescriptorType type;
 };
 
+// One specialization constant: layout(constant_id = id) takes these 32 bits (int, uint, bool
+// or float). Variants of one shader without its dead branches.
+struct SpecConstant {
+  uint32_t id;
+  uint32_t value;
+};
+
 // What every pipeline owns: the pipeline, its layout and its set-0 descriptor-set layout.
 // Move-only; destroys them with the device it was created on.
 class PipelineHandles {

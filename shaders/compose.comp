@@ -40,7 +40,7 @@ void main() {
   const int64_t s = min(int64_t(P.supersample), int64_t(1) << mip);
   const int sub_shift = mip + TVT_FIXED_BITS;
   const float footprint = exp2(float(mip)) / float(s);
-  const bool prefiltered = P.prefiltered != 0 && mip > 0;  // mip 0 is direct under every strategy
+  const bool prefiltered = k_compose_prefiltered && P.prefiltered != 0 && mip > 0;  // mip 0 is direct under every strategy
   vec4 sum = vec4(0.0);
   for (int64_t sy = 0; sy < s; ++sy)
     for (int64_t sx = 0; sx < s; ++sx) {

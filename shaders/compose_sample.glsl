@@ -7,6 +7,15 @@
 #ifndef TVT_COMPOSE_SAMPLE_GLSL
 #define TVT_COMPOSE_SAMPLE_GLSL
 
+// What this pipeline may meet (compose_types.h, TVT_COMPOSE_SPEC_*): a path it cannot take
+// folds away at pipeline creation. The defaults keep every path.
+layout(constant_id = TVT_COMPOSE_SPEC_MODES) const uint k_compose_modes = 0xffffffffu;
+layout(constant_id = TVT_COMPOSE_SPEC_HEX) const bool k_compose_hex = true;
+layout(constant_id = TVT_COMPOSE_SPEC_PREFILTERED) const bool k_compose_prefiltered = true;
+layout(constant_id = TVT_COMPOSE_SPEC_PARTS) const uint k_compose_parts = 0xffffffffu;
+bool part(uint bit) { return (k_compose_parts & bit) != 0u; }
+bool mode_is(int mode, int m) { return (k_compose_modes & (1u << uint(m))) != 0u && mode == m; }
+
 float clamp01(float v) { return (isnan(v) || isinf(v)) ? 0.0 : clamp(v, 0.0, 1.0); }
 float safe_pow(float b, float e) { return b <= 0.0 ? 0.0 : pow(b, e); }
 float blend_map(float b, float a, float s) { return smoothstep(1.0 - clamp01(b) - s, 1.0 - clamp01(b) + s, s + a * (1.0 - 2.0 * s)); }
@@ -277,7 +286,7 @@ vec4 material_at(int n, int64_t x_fp, int64_t y_fp, float lod, bool want_spread,
                  out float fx, out float fy, out vec4 a_spread) {
   material_texel_coord(n, x_fp, gx, fx);
   material_texel_coord(n, y_fp, gy, fy);
-  if (P.materials[n].hex_edge > 0) return hex_sample(n, gx, fx, gy, fy, lod, want_spread, a_spread);
+  if (k_compose_hex && P.materials[n].hex_edge > 0) return hex_sample(n, gx, fx, gy, fy, lod, want_spread, a_spread);
   const int64_t mask = int64_t(P.materials[n].resolution - 1);
   const float u = float(gx & mask) + fx, v = float(gy & mask) + fy;
   a_spread = vec4(0.0);
@@ -373,7 +382,7 @@ void blend_map_of_patches(float settled, float mean, float var, float span, floa
                           out float e, out float dev) {
   const float mu = span > 0.0 ? clamp(mean / span, 0.0, 1.0) : 0.0;
   const float sd = span > 0.0 ? sqrt(clamp(var, 0.0, mu * (1.0 - mu) * span * span)) / span : 0.0;
-  if (!(sd > 1e-4) || mu <= 0.0 || mu >= 1.0) {
+  if (!part(TVT_PART_DPT_EXPECT) || !(sd > 1e-4) || mu <= 0.0 || mu >= 1.0) {
     blend_map_spread(min(settled + mean, 1.0), a_mean, a_spread, s, e, dev);
     return;
   }
@@ -457,11 +466,16 @@ void dpt(int n, int64_t x_fp, int64_t y_fp, float footprint, float plain, float 
       const float exact = ramp(P.materials[n].dpt[k].patch_texels / footprint, P.prefilter_patch_lo, P.prefilter_patch_hi);
       fade_max = max(fade_max, present);
       if (present <= 0.0) continue;
-      const float q = clamp01(safe_pow(plain, P.materials[n].dpt[k].exp_p / max(P.materials[n].dpt[k].exp_r, 1e-6)));
-      float expected = patch_expectation(n, k, q), second = patch_second_moment(n, k, q);
-      const float weight = present * (1.0 - exact);
-      const float point = exact > 0.0 ? present * exact * patch_value(n, k, x_fp, y_fp) : 0.0;
-      if (weight > 0.0) patch_samples(n, k, x_fp, y_fp, footprint, expected, second);
+      // A cleared part bit: its share is zero for every layer at this footprint (TVT_PART_*).
+      const float weight = part(TVT_PART_DPT_EXPECT) ? present * (1.0 - exact) : 0.0;
+      const float point = part(TVT_PART_DPT_POINT) && exact > 0.0 ? present * exact * patch_value(n, k, x_fp, y_fp) : 0.0;
+      float expected = 0.0, second = 0.0;
+      if (part(TVT_PART_DPT_EXPECT) && weight > 0.0) {
+        const float q = clamp01(safe_pow(plain, P.materials[n].dpt[k].exp_p / max(P.materials[n].dpt[k].exp_r, 1e-6)));
+        expected = patch_expectation(n, k, q);
+        second = patch_second_moment(n, k, q);
+        if (part(TVT_PART_DPT_SAMPLES)) patch_samples(n, k, x_fp, y_fp, footprint, expected, second);
+      }
       settled += point;
       mean += weight * expected;
       var += weight * weight * max(second - expected * expected, 0.0);
@@ -495,6 +509,7 @@ void dpt(int n, int64_t x_fp, int64_t y_fp, float footprint, float plain, float 
 // `prefiltered`: mips >= 1 of the prefiltered strategy (reference_compositor.cpp).
 vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_mask, bool prefiltered) {
   footprint = (isnan(footprint) || isinf(footprint)) ? 1.0 : max(footprint, 1.0 / 256.0);
+  prefiltered = k_compose_prefiltered && prefiltered;
   float wts[TVT_MAX_MATERIALS];
   for (int n = 0; n < P.material_count; ++n)
     wts[n] = (material_mask & (1u << uint(n))) != 0u ? weight_at(P.materials[n].weight_layer, x_fp, y_fp) : 0.0;
@@ -512,7 +527,7 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
     const float plain = wts[n];
     weight_sum += plain;
     const int mode = P.materials[n].mode;
-    if (plain <= 0.0 && (mode == TVT_MODE_LINEAR || mode == TVT_MODE_BLENDMAP)) continue;
+    if (plain <= 0.0 && (mode_is(mode, TVT_MODE_LINEAR) || mode_is(mode, TVT_MODE_BLENDMAP))) continue;
 
     const float lod = material_lod(n, footprint);
     int64_t gx, gy;  // global material texel (FBPB centroids) and the position's fraction of it
@@ -529,34 +544,34 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
     vec4 feature_moment = vec4(0.0);
     const float s = P.materials[n].blend_sharpness;
 
-    if (mode == TVT_MODE_LINEAR) {
+    if (mode_is(mode, TVT_MODE_LINEAR)) {
       b = weight_sum > 0.0 ? min(1.0, P.linear_boost * plain / weight_sum) : 0.0;
-    } else if (mode == TVT_MODE_BLENDMAP) {
+    } else if (mode_is(mode, TVT_MODE_BLENDMAP)) {
       if (prefiltered) {
         blend_map_spread(plain, colour.a, a_spread, s, b, dev);
         dev_height = true;
       } else {
         b = blend_map(plain, colour.a, s);
       }
-    } else if (mode == TVT_MODE_DPT) {
+    } else if (mode_is(mode, TVT_MODE_DPT)) {
       dpt(n, x_fp, y_fp, footprint, plain, colour.a, prefiltered, a_spread, b, height, dev);
-    } else {
+    } else if (mode_is(mode, TVT_MODE_FBPB) || mode_is(mode, TVT_MODE_FBPB_DPT)) {
       float non_feature = 0.0;
       float dpt_h = colour.a;
       float unused;
-      if (mode == TVT_MODE_FBPB_DPT) dpt(n, x_fp, y_fp, footprint, plain, colour.a, prefiltered, a_spread, non_feature, dpt_h, unused);
+      if (mode_is(mode, TVT_MODE_FBPB_DPT)) dpt(n, x_fp, y_fp, footprint, plain, colour.a, prefiltered, a_spread, non_feature, dpt_h, unused);
       const float fade_end = max(P.materials[n].fbpb_fade_hi, P.materials[n].fbpb_fade_lo);
       const float fade = prefiltered ? 1.0 - ramp(lod, fade_end, fade_end + 1.0)
                                      : 1.0 - ramp(lod, P.materials[n].fbpb_fade_lo, P.materials[n].fbpb_fade_hi);
       float fallback;
-      if (mode == TVT_MODE_FBPB_DPT) fallback = non_feature;
+      if (mode_is(mode, TVT_MODE_FBPB_DPT)) fallback = non_feature;
       else if (prefiltered) blend_map_spread(plain, colour.a, a_spread, s, fallback, unused);
       else fallback = blend_map(plain, colour.a, s);
       const float fade0 = prefiltered && fade < 1.0
                               ? 1.0 - ramp(material_lod(n, 1.0), P.materials[n].fbpb_fade_lo, P.materials[n].fbpb_fade_hi)
                               : 0.0;
-      if (fade0 > 0.0) {
-        const float nf = mode == TVT_MODE_FBPB_DPT ? non_feature : plain;
+      if (part(TVT_PART_FEATURE_EXPECT) && fade0 > 0.0) {
+        const float nf = mode_is(mode, TVT_MODE_FBPB_DPT) ? non_feature : plain;
         const int64_t mask = int64_t(P.materials[n].resolution - 1);
         vec2 df;
         feature_stats(n, float(gx & mask) + fx, float(gy & mask) + fy, lod, df, feature_moment);
@@ -586,7 +601,7 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
         feature_shift = (1.0 - fade) * fade0 * (w_feature - w_ground);
       }
       float w = 0.0;
-      if (fade > 0.0) {
+      if (part(TVT_PART_FEATURES) && fade > 0.0) {
         const int64_t R = int64_t(P.materials[n].resolution);
         const int64_t lx = gx & (R - 1), ly = gy & (R - 1);
         float d, f, pw;
@@ -604,12 +619,12 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
             colour.rgb *= P.materials[n].colour_coeff;
           }
         }
-        const float nf = mode == TVT_MODE_FBPB_DPT ? non_feature : pw;
+        const float nf = mode_is(mode, TVT_MODE_FBPB_DPT) ? non_feature : pw;
         w = visible ? min(P.materials[n].cm * max(pw, f), 1.0) : min((1.0 - d) * nf * P.materials[n].cn, 1.0);
       }
       b = fade * w + (1.0 - fade) * fallback;
       visible = visible && fade > 0.0;
-      if (mode == TVT_MODE_FBPB_DPT) height = dpt_h;
+      if (mode_is(mode, TVT_MODE_FBPB_DPT)) height = dpt_h;
     }
     const float bn = (visible || !feature_above) ? clamp01(b) : 0.0;
     feature_above = feature_above || visible;
@@ -617,7 +632,7 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
     if (prefiltered && bn > 0.0 && dev != 0.0 && a_stats.x > 1e-6)
       result += vec4(a_stats.yzw / a_stats.x * dev, dev_height ? dev : 0.0);
     if (prefiltered && bn > 0.0 && feature_shift != 0.0) {
-      if (mode == TVT_MODE_FBPB_DPT) feature_moment.a = 0.0;  // its height is DPT's, not A
+      if (mode_is(mode, TVT_MODE_FBPB_DPT)) feature_moment.a = 0.0;  // its height is DPT's, not A
       result += feature_moment * feature_shift;
     }
   }

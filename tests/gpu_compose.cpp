@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <bit>
 #include <filesystem>
+#include <limits>
 #include <map>
 
 #include "compose/packed_scene.h"
@@ -200,6 +201,82 @@ TEST_F(GpuCompose, PrefilteredMipsMatchReferenceForEveryMethod) {
   for (Method m : {Method::FbpbDpt, Method::BlendMap})
     expect_agreement(far, options_for(m, MipStrategy{1, true}), {{0, last, last}, {4, 4095, 4095}, {12, 15, 15}},
                      "prefiltered far corner " + std::string(to_string(m)));
+}
+
+// The pipelines specialised to the scene's modes, hex-tiling and each mip's parts of the
+// prefiltered maths (TVT_COMPOSE_SPEC_*) leave out only what cannot run: every byte as the one
+// pipeline that keeps every path, for every method, strategy and mip, in one mixed batch.
+TEST_F(GpuCompose, SpecialisedPipelinesChangeNoByte) {
+  const SceneAssets& assets = default_assets(16);
+  std::vector<PageId> pages;
+  for (uint32_t mip = 0; mip <= 9; ++mip) pages.push_back(PageId{mip, 20u >> (mip / 2), 30u >> (mip / 2)});
+  for (const bool hex : {false, true})
+    for (const MipStrategy strategy : {MipStrategy{}, MipStrategy{1, true}, MipStrategy{2}})
+      for (Method m : k_all_methods) {
+        if (strategy.supersample > 1 && (hex || m != Method::FbpbDpt)) continue;  // supersampling: one case
+        ComposeOptions o = options_for(m, strategy);
+        o.hex = hex;
+        auto packed = pack_scene(assets, o);
+        ASSERT_TRUE(packed.ok()) << packed.error().message;
+        GpuComposerOptions plain;
+        plain.specialise = false;
+        auto specialised = GpuComposer::create(ctx(), packed.value(), uint32_t(pages.size()));
+        auto general = GpuComposer::create(ctx(), packed.value(), uint32_t(pages.size()), plain);
+        ASSERT_TRUE(specialised.ok() && general.ok());
+        const auto a = specialised.value()->compose_pages(pages).value();
+        const auto b = general.value()->compose_pages(pages).value();
+        for (size_t i = 0; i < pages.size(); ++i)
+          EXPECT_TRUE(a[i] == b[i]) << to_string(m) << " " << to_string(strategy) << (hex ? " hex" : "") << ": mip "
+                                    << pages[i].mip;
+      }
+}
+
+TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureFadeWithTheFootprint) {
+  gpu::TvtComposeParams p{};
+  p.material_count = 3;
+  p.supersample = 1;
+  p.prefiltered = 1;
+  p.prefilter_patch_lo = 0.5f;
+  p.prefilter_patch_hi = 2.0f;
+  gpu::TvtMaterial& dpt = p.materials[1];
+  dpt.mode = gpu::TVT_MODE_DPT;
+  dpt.resolution = 256;
+  dpt.period_fp = 256 * 256;
+  dpt.dpt_layer_count = 1;
+  dpt.dpt_fade_lo = 1.0f;
+  dpt.dpt_fade_hi = 2.0f;
+  dpt.dpt[0].patch_texels = 64.0f;
+  gpu::TvtMaterial& fbpb = p.materials[2];  // one material texel a level-0 texel: its LOD is the mip
+  fbpb.mode = gpu::TVT_MODE_FBPB;
+  fbpb.resolution = 256;
+  fbpb.period_fp = 256 * 256;
+  fbpb.fbpb_fade_lo = 1.0f;
+  fbpb.fbpb_fade_hi = 2.0f;
+  using namespace gpu;
+  // Footprint 2: 32 texels a patch, exact; features exact (LOD 1 < 2).
+  EXPECT_EQ(prefiltered_parts(p, 1), TVT_PART_DPT_POINT | TVT_PART_FEATURES);
+  // LOD 2 and 3 sit on the feature fade's ends, and footprint 32 on the patch ramp's upper end:
+  // kept both ways (conservative).
+  EXPECT_EQ(prefiltered_parts(p, 2), TVT_PART_DPT_POINT | TVT_PART_FEATURES | TVT_PART_FEATURE_EXPECT);
+  EXPECT_EQ(prefiltered_parts(p, 3), TVT_PART_DPT_POINT | TVT_PART_FEATURES | TVT_PART_FEATURE_EXPECT);
+  EXPECT_EQ(prefiltered_parts(p, 4), TVT_PART_DPT_POINT | TVT_PART_FEATURE_EXPECT);
+  EXPECT_EQ(prefiltered_parts(p, 5), TVT_PART_ALL & ~TVT_PART_FEATURES);
+  // Footprint 256: four patches a side, in expectation from samples; 1024: 16, expectation alone.
+  EXPECT_EQ(prefiltered_parts(p, 8), TVT_PART_DPT_EXPECT | TVT_PART_DPT_SAMPLES | TVT_PART_FEATURE_EXPECT);
+  EXPECT_EQ(prefiltered_parts(p, 10), TVT_PART_DPT_EXPECT | TVT_PART_FEATURE_EXPECT);
+  // FBPB features that have faded out before the finest texture level: never in expectation.
+  fbpb.fbpb_fade_lo = -2.0f;
+  fbpb.fbpb_fade_hi = -1.0f;
+  EXPECT_EQ(prefiltered_parts(p, 10), TVT_PART_DPT_EXPECT);
+  // A DPT layer below the minification fade is absent at every footprint.
+  dpt.dpt[0].patch_texels = 0.5f;
+  EXPECT_EQ(prefiltered_parts(p, 1), 0u);
+  // Numbers no validated scene has keep every part.
+  dpt.dpt[0].patch_texels = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_EQ(prefiltered_parts(p, 4), TVT_PART_ALL);
+  dpt.dpt[0].patch_texels = 64.0f;
+  fbpb.period_fp = 0;
+  EXPECT_EQ(prefiltered_parts(p, 4), TVT_PART_ALL);
 }
 
 TEST_F(GpuCompose, PagesAreDeterministicAndBordersMatchNeighbours) {

@@ -473,12 +473,12 @@ TEST(Prefiltered, FollowsTheSpreadOfThePatchesUnderASharpBlendMap) {
 // values at points over the footprint follow them.
 TEST(Prefiltered, FollowsTheFootprintsOwnPatchesWhereTheyAreFew) {
   SceneAssets a = dpt_scene(16, 0.5f);
-  ImageRGBA8 spread(16, 16);  // A varies (every value once, scattered), as a height map does
+  ImageRGBA8 varied(16, 16);  // A varies (every value once, scattered), as a height map does
   for (int i = 0; i < 256; ++i) {
-    uint8_t* t = spread.at(i % 16, i / 16);
+    uint8_t* t = varied.at(i % 16, i / 16);
     t[0] = 0, t[1] = 250, t[2] = 0, t[3] = uint8_t((i * 97 + 13) % 256);
   }
-  a.materials->edit(1).albedo = build_mip_chain(spread);
+  a.materials->edit(1).albedo = build_mip_chain(varied);
   const PackedScene direct = pack(a), pre = pack(a, prefiltered_options());
   for (const uint32_t mip : {4u, 5u}) {
     double err = 0, spread = 0, truth_mean = 0;

@@ -18,6 +18,27 @@ TVT_CONST int TVT_MODE_FBPB = 2;      // Feature-Based Probabilistic Blending
 TVT_CONST int TVT_MODE_DPT = 3;       // Dynamic Patch Transitions
 TVT_CONST int TVT_MODE_FBPB_DPT = 4;  // FBPB features over a DPT-shaped non-feature blend
 
+// Specialization constants of the composition (compose_sample.glsl), set by the GPU composer
+// per scene and per batch so that a pipeline carries only the paths its pages can take (some
+// devices, lavapipe among them, execute both sides of every branch). Includers that do not
+// set them (the direct-splat pass) keep every path. Ids clear of the terrain passes' own.
+// Bit m set: some material n >= 1 has mode m (TVT_MODE_*).
+#define TVT_COMPOSE_SPEC_MODES 16
+// Some material has hex-tiling (hex_edge > 0).
+#define TVT_COMPOSE_SPEC_HEX 17
+// Mips >= 1 of the prefiltered strategy may be composed (false: every sample is direct).
+#define TVT_COMPOSE_SPEC_PREFILTERED 18
+// Prefiltered: which of its parts a page of this mip can reach (TVT_PART_* bits; the composer
+// works them out per mip from the parameters, conservatively: a cleared bit is a part whose
+// weight is zero for every material at that footprint).
+#define TVT_COMPOSE_SPEC_PARTS 19
+TVT_CONST uint TVT_PART_DPT_POINT = 1u;        // a DPT layer's point value (exact share > 0)
+TVT_CONST uint TVT_PART_DPT_EXPECT = 2u;       // a DPT layer's expectation (exact share < 1)
+TVT_CONST uint TVT_PART_DPT_SAMPLES = 4u;      // ... from samples (fewer than _HI patches a side)
+TVT_CONST uint TVT_PART_FEATURES = 8u;         // FBPB's exact features (fade > 0)
+TVT_CONST uint TVT_PART_FEATURE_EXPECT = 16u;  // FBPB's features in expectation (fade0 > 0)
+TVT_CONST uint TVT_PART_ALL = 31u;
+
 // A material's texel words (texel_offset): its mip chain, level l = 0 .. log2 R of
 // (R >> l)^2 RGBA8 texels, each level l >= 1 followed by its spread chain, then the statistics
 // block. The spread chain of level l holds one word per level-l texel describing A within the
