@@ -28,6 +28,22 @@ bool ramp_may_be_below_one(double v, double lo, double hi) {
 
 }  // namespace
 
+bool small_coordinates(const gpu::TvtComposeParams& p) {
+  // Sample positions lie in [0, V] level-0 texels, the prefiltered samples up to half a
+  // footprint (at most V/2) beyond: |position| <= 1.5 V * 256 < 2^30 for V <= 2^21.
+  if (p.log2_vt > 21) return false;
+  const double v_fp = std::ldexp(1.0, p.log2_vt + gpu::TVT_FIXED_BITS);
+  for (int n = 0; n < p.material_count && n < gpu::TVT_MAX_MATERIALS; ++n) {
+    const gpu::TvtMaterial& m = p.materials[n];
+    for (int k = 0; k < std::min(m.dpt_layer_count, gpu::TVT_MAX_DPT_LAYERS); ++k)
+      if (m.dpt[k].patch_fp <= 0 || m.dpt[k].patch_fp >= (int64_t(1) << 30)) return false;
+    // hex_sample(): global material texels of positions in [0, V], below 2^29 with room to spare.
+    if (m.hex_edge > 0 && (m.period_fp <= 0 || v_fp * double(m.resolution) / double(m.period_fp) >= std::ldexp(1.0, 28)))
+      return false;
+  }
+  return true;
+}
+
 uint32_t prefiltered_parts(const gpu::TvtComposeParams& p, uint32_t mip) {
   // compose.comp's footprint: 2^mip level-0 texels over at most 2^mip sub-samples a side.
   const double s = std::min(std::max(double(p.supersample), 1.0), std::ldexp(1.0, int(std::min(mip, 62u))));
@@ -144,8 +160,10 @@ const vk::ComputePipeline* GpuComposer::variant(bool prefiltered, uint32_t parts
     prefiltered = true;  // compose.comp decides per page
     parts = gpu::TVT_PART_ALL;
   }
+  const bool small = specialise_ && small_coordinates(params_);
   for (const Variant& v : variants_)
-    if (v.modes == modes && v.hex == hex && v.prefiltered == prefiltered && v.parts == parts) return &v.pipeline;
+    if (v.modes == modes && v.hex == hex && v.prefiltered == prefiltered && v.parts == parts && v.small == small)
+      return &v.pipeline;
   // Every variant has the same bindings, so one descriptor set serves them all.
   static constexpr vk::ComputeBinding bindings[] = {
       {TVT_BIND_COMPOSE_PARAMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER}, {TVT_BIND_MATERIAL_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
@@ -156,11 +174,12 @@ const vk::ComputePipeline* GpuComposer::variant(bool prefiltered, uint32_t parts
       {TVT_COMPOSE_SPEC_MODES, modes},
       {TVT_COMPOSE_SPEC_HEX, hex ? 1u : 0u},
       {TVT_COMPOSE_SPEC_PREFILTERED, prefiltered ? 1u : 0u},
-      {TVT_COMPOSE_SPEC_PARTS, parts}};
+      {TVT_COMPOSE_SPEC_PARTS, parts},
+      {TVT_COMPOSE_SPEC_SMALL, small ? 1u : 0u}};
   vk::ComputePipeline pipeline =
       context_->create_compute_pipeline(shaders::compose_comp(), bindings, sizeof(gpu::TvtComposePush), constants);
   if (pipeline.handle() == VK_NULL_HANDLE) return nullptr;
-  variants_.push_back(Variant{modes, hex, prefiltered, parts, std::move(pipeline)});
+  variants_.push_back(Variant{modes, hex, prefiltered, parts, small, std::move(pipeline)});
   return &variants_.back().pipeline;
 }
 

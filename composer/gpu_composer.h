@@ -51,6 +51,11 @@ struct GpuComposerOptions {
 // is kept where float rounding could decide either way); all bits for unvalidated numbers.
 uint32_t prefiltered_parts(const gpu::TvtComposeParams& params, uint32_t mip);
 
+// Whether every position compose.comp divides by a DPT patch or a hex tile fits their 32-bit
+// paths (TVT_COMPOSE_SPEC_SMALL): V <= 2^21, patches below 2^22 texels, and hex-tiled
+// materials' texel coordinates below 2^28.
+bool small_coordinates(const gpu::TvtComposeParams& params);
+
 class GpuComposer {
  public:
   // slots: layers of the owned output image; also the most pages one dispatch composes.
@@ -121,13 +126,15 @@ class GpuComposer {
   vk::Image* target_ = nullptr;     // what compose.comp writes
   // compose.comp specialised to what the parameters can take (compose_types.h,
   // TVT_COMPOSE_SPEC_*): the modes present, hex-tiling, direct or prefiltered pages, and which
-  // parts of the prefiltered maths a page's mip can reach (prefiltered_parts()). Made on first
+  // parts of the prefiltered maths a page's mip can reach (prefiltered_parts()), and whether
+  // the 32-bit coordinate paths always hold (small_coordinates()). Made on first
   // use and kept; a batch of mixed mips is one dispatch per variant.
   struct Variant {
     uint32_t modes = 0;
     bool hex = false;
     bool prefiltered = false;
     uint32_t parts = 0;  // TVT_PART_*
+    bool small = false;  // small_coordinates()
     vk::ComputePipeline pipeline;
   };
   // The variant for the current parameters; nullptr after a failed Vulkan call.

@@ -13,6 +13,7 @@ layout(constant_id = TVT_COMPOSE_SPEC_MODES) const uint k_compose_modes = 0xffff
 layout(constant_id = TVT_COMPOSE_SPEC_HEX) const bool k_compose_hex = true;
 layout(constant_id = TVT_COMPOSE_SPEC_PREFILTERED) const bool k_compose_prefiltered = true;
 layout(constant_id = TVT_COMPOSE_SPEC_PARTS) const uint k_compose_parts = 0xffffffffu;
+layout(constant_id = TVT_COMPOSE_SPEC_SMALL) const bool k_compose_small = false;
 bool part(uint bit) { return (k_compose_parts & bit) != 0u; }
 bool mode_is(int mode, int m) { return (k_compose_modes & (1u << uint(m))) != 0u && mode == m; }
 
@@ -202,7 +203,7 @@ vec4 hex_sample(int n, int64_t gx, float fx, int64_t gy, float fy, float lod, bo
   const int64_t R = int64_t(P.materials[n].resolution);
   int64_t i, j;
   float a, b;
-  if (abs(gx) < int64_t(1 << 29) && abs(gy) < int64_t(1 << 29)) {
+  if (k_compose_small || (abs(gx) < int64_t(1 << 29) && abs(gy) < int64_t(1 << 29))) {
     // Terrains up to 2^29 material texels a side (the default scene at V = 2^24 is 2^23): the
     // same floor divisions in 32 bits, several times cheaper than 64-bit ones on GPUs.
     const int gy32 = int(gy), h32 = int(H), l32 = int(L);
@@ -399,10 +400,11 @@ float patch_value(int n, int k, int64_t x_fp, int64_t y_fp) {
   const int64_t ps = P.materials[n].dpt[k].patch_fp;
   int64_t ix, iy;
   float fx, fy;
-  if (x_fp >= 0 && y_fp >= 0 && x_fp < int64_t(1 << 30) && y_fp < int64_t(1 << 30) && ps < int64_t(1 << 30)) {
-    // Positions below 2^22 texels (every page of V <= 2^22): 32-bit divisions, the same quotients.
+  if (k_compose_small || (abs(x_fp) < int64_t(1 << 30) && abs(y_fp) < int64_t(1 << 30) && ps < int64_t(1 << 30))) {
+    // Positions within 2^22 texels of the origin (every page of V <= 2^21, and of V = 2^22 but
+    // for the expectation's samples beyond its edges): 32-bit divisions, the same quotients.
     const int ps32 = int(ps), x32 = int(x_fp), y32 = int(y_fp);
-    const int ix32 = x32 / ps32, iy32 = y32 / ps32;
+    const int ix32 = tvt_floor_div32(x32, ps32), iy32 = tvt_floor_div32(y32, ps32);
     fx = float(x32 - ix32 * ps32) / float(ps32);
     fy = float(y32 - iy32 * ps32) / float(ps32);
     ix = int64_t(ix32);

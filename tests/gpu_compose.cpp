@@ -214,6 +214,7 @@ TEST_F(GpuCompose, SpecialisedPipelinesChangeNoByte) {
     for (const MipStrategy strategy : {MipStrategy{}, MipStrategy{1, true}, MipStrategy{2}})
       for (Method m : k_all_methods) {
         if (strategy.supersample > 1 && (hex || m != Method::FbpbDpt)) continue;  // supersampling: one case
+        if (hex && m != Method::BlendMap && m != Method::FbpbDpt) continue;     // hex: two methods
         ComposeOptions o = options_for(m, strategy);
         o.hex = hex;
         auto packed = pack_scene(assets, o);
@@ -277,6 +278,28 @@ TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureFadeWithTheFootprint)
   dpt.dpt[0].patch_texels = 64.0f;
   fbpb.period_fp = 0;
   EXPECT_EQ(prefiltered_parts(p, 4), TVT_PART_ALL);
+}
+
+TEST(SmallCoordinates, HoldUpToTwoToThe21AndForPatchesAndHexTilesThatFit) {
+  gpu::TvtComposeParams p{};
+  p.log2_vt = 21;
+  p.material_count = 2;
+  gpu::TvtMaterial& m = p.materials[1];
+  m.resolution = 1024;
+  m.period_fp = 512 * 256;  // two material texels a level-0 texel
+  m.dpt_layer_count = 1;
+  m.dpt[0].patch_fp = int64_t(1024) * 256;
+  m.hex_edge = 64;
+  EXPECT_TRUE(small_coordinates(p));  // material texels up to 2^22
+  p.log2_vt = 22;
+  EXPECT_FALSE(small_coordinates(p));  // positions beyond 2^30 / 1.5
+  p.log2_vt = 21;
+  m.period_fp = 8 * 256;  // 128 material texels a level-0 texel: 2^28 of them across V
+  EXPECT_FALSE(small_coordinates(p));
+  m.hex_edge = 0;  // without hex-tiling, nothing divides them
+  EXPECT_TRUE(small_coordinates(p));
+  m.dpt[0].patch_fp = int64_t(1) << 30;
+  EXPECT_FALSE(small_coordinates(p));
 }
 
 TEST_F(GpuCompose, PagesAreDeterministicAndBordersMatchNeighbours) {

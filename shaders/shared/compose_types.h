@@ -32,6 +32,10 @@ TVT_CONST int TVT_MODE_FBPB_DPT = 4;  // FBPB features over a DPT-shaped non-fea
 // works them out per mip from the parameters, conservatively: a cleared bit is a part whose
 // weight is zero for every material at that footprint).
 #define TVT_COMPOSE_SPEC_PARTS 19
+// Every position a DPT layer or hex-tiling divides fits their 32-bit paths (V <= 2^21, patches
+// and hex tiles of fewer than 2^22 texels; the composer checks the scene): the 64-bit
+// divisions they otherwise keep for far terrain are left out.
+#define TVT_COMPOSE_SPEC_SMALL 20
 TVT_CONST uint TVT_PART_DPT_POINT = 1u;        // a DPT layer's point value (exact share > 0)
 TVT_CONST uint TVT_PART_DPT_EXPECT = 2u;       // a DPT layer's expectation (exact share < 1)
 TVT_CONST uint TVT_PART_DPT_SAMPLES = 4u;      // ... from samples (fewer than _HI patches a side)
