@@ -101,6 +101,7 @@ Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, c
   std::memcpy(c->params_buffer_.mapped(), &c->params_, sizeof(c->params_));
   c->records_in_flight_ = std::max(options.records_in_flight, 1u);
   c->specialise_ = options.specialise;
+  c->derive_specialisation();
   c->materials_ = std::make_unique<MaterialUploader>(context, scene, c->records_in_flight_);
   if (options.poison_materials)
     context.run_commands([m = c->materials_.get()](VkCommandBuffer cmd) { m->fill(cmd, 0xffffffffu); });  // by value: may be deferred
@@ -146,21 +147,29 @@ Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, c
   return c;
 }
 
+void GpuComposer::derive_specialisation() {
+  spec_modes_ = 0xffffffffu;
+  spec_hex_ = true;
+  spec_small_ = false;
+  parts_by_mip_.fill(gpu::TVT_PART_ALL);
+  if (!specialise_) return;
+  spec_modes_ = 0;
+  spec_hex_ = false;
+  for (int n = 0; n < params_.material_count; ++n) {
+    if (n > 0) spec_modes_ |= 1u << uint32_t(params_.materials[n].mode);
+    spec_hex_ = spec_hex_ || params_.materials[n].hex_edge > 0;
+  }
+  spec_small_ = small_coordinates(params_);
+  for (uint32_t mip = 0; mip < parts_by_mip_.size(); ++mip) parts_by_mip_[mip] = prefiltered_parts(params_, mip);
+}
+
 const vk::ComputePipeline* GpuComposer::variant(bool prefiltered, uint32_t parts) {
-  uint32_t modes = 0xffffffffu;
-  bool hex = true;
-  if (specialise_) {
-    modes = 0;
-    hex = false;
-    for (int n = 0; n < params_.material_count; ++n) {
-      if (n > 0) modes |= 1u << uint32_t(params_.materials[n].mode);
-      hex = hex || params_.materials[n].hex_edge > 0;
-    }
-  } else {
+  if (!specialise_) {
     prefiltered = true;  // compose.comp decides per page
     parts = gpu::TVT_PART_ALL;
   }
-  const bool small = specialise_ && small_coordinates(params_);
+  const uint32_t modes = spec_modes_;
+  const bool hex = spec_hex_, small = spec_small_;
   for (const Variant& v : variants_)
     if (v.modes == modes && v.hex == hex && v.prefiltered == prefiltered && v.parts == parts && v.small == small)
       return &v.pipeline;
@@ -186,6 +195,7 @@ const vk::ComputePipeline* GpuComposer::variant(bool prefiltered, uint32_t parts
 void GpuComposer::set_params(const gpu::TvtComposeParams& params) {
   TVT_CHECK(materials_->same_layout(params));
   params_ = params;
+  derive_specialisation();
   culler_->set_params(params);
   std::memcpy(params_buffer_.mapped(), &params_, sizeof(params_));
 }
@@ -202,7 +212,7 @@ Status GpuComposer::record(VkCommandBuffer cmd, std::span<const PageJob> jobs) {
   // A job names its slot, so the order is free.
   const auto key = [&](const PageJob& j) -> uint64_t {
     if (!specialise_ || params_.prefiltered == 0 || j.page.mip == 0) return 0;
-    return 1 + uint64_t(prefiltered_parts(params_, j.page.mip));
+    return 1 + uint64_t(parts_by_mip_[std::min<size_t>(j.page.mip, parts_by_mip_.size() - 1)]);
   };
   std::vector<std::pair<uint64_t, uint32_t>> order;  // (variant key, job)
   order.reserve(jobs.size());

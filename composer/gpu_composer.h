@@ -7,6 +7,7 @@
 // compose/material_culling.h predicts) just before their dispatch. Output is byte-identical to
 // uploading everything at create().
 #pragma once
+#include <array>
 #include <cstdint>
 #include <deque>
 #include <memory>
@@ -139,6 +140,13 @@ class GpuComposer {
   };
   // The variant for the current parameters; nullptr after a failed Vulkan call.
   const vk::ComputePipeline* variant(bool prefiltered, uint32_t parts);
+  // What the variants are specialised to, from params_ (create() and set_params()): record()
+  // only looks them up.
+  void derive_specialisation();
+  uint32_t spec_modes_ = 0xffffffffu;
+  bool spec_hex_ = true;
+  bool spec_small_ = false;
+  std::array<uint32_t, 64> parts_by_mip_{};  // prefiltered_parts() of each mip (62 on: as 62)
   std::deque<Variant> variants_;  // a deque: variant() pointers stay valid as it grows
   vk::DescriptorSet descriptors_;  // from the first variant's (identically defined) layout
 };

@@ -6,6 +6,31 @@
 
 namespace tvt::vk {
 
+namespace {
+
+// A stage's specialization constants as Vulkan takes them (32 bits each); info() is null
+// when there are none. Not copyable: the info points into the object's own arrays.
+class Specialization {
+ public:
+  explicit Specialization(std::span<const SpecConstant> constants) {
+    for (const SpecConstant& c : constants) {
+      entries_.push_back({c.id, uint32_t(values_.size() * sizeof(uint32_t)), sizeof(uint32_t)});
+      values_.push_back(c.value);
+    }
+    info_ = {uint32_t(entries_.size()), entries_.data(), values_.size() * sizeof(uint32_t), values_.data()};
+  }
+  Specialization(const Specialization&) = delete;
+  Specialization& operator=(const Specialization&) = delete;
+  const VkSpecializationInfo* info() const { return entries_.empty() ? nullptr : &info_; }
+
+ private:
+  std::vector<VkSpecializationMapEntry> entries_;
+  std::vector<uint32_t> values_;
+  VkSpecializationInfo info_{};
+};
+
+}  // namespace
+
 ComputePipeline Context::create_compute_pipeline(std::span<const uint32_t> spirv,
                                                  std::span<const ComputeBinding> bindings,
                                                  uint32_t push_constant_bytes,
@@ -44,15 +69,8 @@ ComputePipeline Context::create_compute_pipeline(std::span<const uint32_t> spirv
   cpci.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
   cpci.stage.module = module;
   cpci.stage.pName = "main";
-  std::vector<VkSpecializationMapEntry> entries;
-  std::vector<uint32_t> values;
-  for (const SpecConstant& c : constants) {
-    entries.push_back({c.id, uint32_t(values.size() * sizeof(uint32_t)), sizeof(uint32_t)});
-    values.push_back(c.value);
-  }
-  const VkSpecializationInfo spec{uint32_t(entries.size()), entries.data(), values.size() * sizeof(uint32_t),
-                                  values.data()};
-  if (!entries.empty()) cpci.stage.pSpecializationInfo = &spec;
+  const Specialization spec(constants);
+  cpci.stage.pSpecializationInfo = spec.info();
   cpci.layout = p.layout_;
   const VkResult r = fn_.vkCreateComputePipelines(device_, VK_NULL_HANDLE, 1, &cpci, alloc_, &p.pipeline_);
   fn_.vkDestroyShaderModule(device_, module, alloc_);
@@ -150,22 +168,17 @@ GraphicsPipeline Context::create_graphics_pipeline(const GraphicsPipelineDesc& d
     if (vs != VK_NULL_HANDLE) fn_.vkDestroyShaderModule(device_, vs, alloc_);
     return {};
   }
-  // Fragment specialization constants: constant_id i = desc.fragment_constants[i] (32 bits each).
-  std::vector<VkSpecializationMapEntry> spec_entries;
-  for (uint32_t i = 0; i < desc.fragment_constants.size(); ++i)
-    spec_entries.push_back({i, i * uint32_t(sizeof(uint32_t)), sizeof(uint32_t)});
-  VkSpecializationInfo spec{};
-  spec.mapEntryCount = uint32_t(spec_entries.size());
-  spec.pMapEntries = spec_entries.data();
-  spec.dataSize = desc.fragment_constants.size() * sizeof(uint32_t);
-  spec.pData = desc.fragment_constants.data();
+  // Fragment specialization constants: constant_id i = desc.fragment_constants[i].
+  std::vector<SpecConstant> fragment_constants;
+  for (uint32_t i = 0; i < desc.fragment_constants.size(); ++i) fragment_constants.push_back({i, desc.fragment_constants[i]});
+  const Specialization spec(fragment_constants);
   VkPipelineShaderStageCreateInfo stages[2];
   for (int i = 0; i < 2; ++i) {
     stages[i] = init<VkPipelineShaderStageCreateInfo>(VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO);
     stages[i].stage = i == 0 ? VK_SHADER_STAGE_VERTEX_BIT : VK_SHADER_STAGE_FRAGMENT_BIT;
     stages[i].module = i == 0 ? vs : fs;
     stages[i].pName = "main";
-    if (i == 1 && !spec_entries.empty()) stages[i].pSpecializationInfo = &spec;
+    if (i == 1) stages[i].pSpecializationInfo = spec.info();
   }
 
   auto vi = init<VkPipelineVertexInputStateCreateInfo>(VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO);
