@@ -133,9 +133,10 @@ Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, c
     });
   }
 
-  // The variants the parameters need for any page (others are made on first use).
-  const vk::ComputePipeline* pipeline = c->variant(false, gpu::TVT_PART_ALL);
-  if (!pipeline) return context.status().error();
+  // The direct variant, and the prefiltered ones of every mip the VT has, now: a driver
+  // compiles at pipeline creation, which inside a frame would be a hitch.
+  if (!c->make_variants()) return context.status().error();
+  const vk::ComputePipeline* pipeline = c->variant(false, gpu::TVT_PART_ALL);  // made above
   c->descriptors_ = context.allocate_descriptor_set(*pipeline);
   c->descriptors_.write_buffer(TVT_BIND_COMPOSE_PARAMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->params_buffer_);
   c->descriptors_.write_buffer(TVT_BIND_MATERIAL_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->materials_->texels());
@@ -156,11 +157,25 @@ void GpuComposer::derive_specialisation() {
   spec_modes_ = 0;
   spec_hex_ = false;
   for (int n = 0; n < params_.material_count; ++n) {
-    if (n > 0) spec_modes_ |= 1u << uint32_t(params_.materials[n].mode);
+    const uint32_t mode = uint32_t(params_.materials[n].mode);
+    // An unknown mode (parameters not from pack_scene): keep every mode's path.
+    if (n > 0) spec_modes_ |= mode < 32 ? 1u << mode : 0xffffffffu;
     spec_hex_ = spec_hex_ || params_.materials[n].hex_edge > 0;
   }
   spec_small_ = small_coordinates(params_);
   for (uint32_t mip = 0; mip < parts_by_mip_.size(); ++mip) parts_by_mip_[mip] = prefiltered_parts(params_, mip);
+}
+
+bool GpuComposer::make_variants() {
+  if (!variant(false, gpu::TVT_PART_ALL)) return false;
+  if (!specialise_ || params_.prefiltered == 0) return true;
+  // Mips 1 to the one whose single page spans the VT (record() takes deeper mips as this one).
+  int page_bits = 0;
+  while (page_bits < 31 && (int64_t(1) << (page_bits + 1)) <= int64_t(params_.page_texels)) ++page_bits;
+  const uint32_t top = uint32_t(std::clamp(params_.log2_vt - page_bits, 1, int(parts_by_mip_.size()) - 1));
+  for (uint32_t mip = 1; mip <= top; ++mip)
+    if (!variant(true, parts_by_mip_[mip])) return false;
+  return true;
 }
 
 const vk::ComputePipeline* GpuComposer::variant(bool prefiltered, uint32_t parts) {
@@ -196,6 +211,7 @@ void GpuComposer::set_params(const gpu::TvtComposeParams& params) {
   TVT_CHECK(materials_->same_layout(params));
   params_ = params;
   derive_specialisation();
+  make_variants();  // a failure shows in the context's status, which record() returns
   culler_->set_params(params);
   std::memcpy(params_buffer_.mapped(), &params_, sizeof(params_));
 }

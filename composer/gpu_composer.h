@@ -108,6 +108,10 @@ class GpuComposer {
   const vk::Image& output() const { return *target_; }
   uint32_t slots() const { return slots_; }
   uint32_t slot_texels() const { return slot_texels_; }
+  // Compute pipelines made so far (one per specialised variant). After create() and
+  // set_params() this holds every variant a page of the VT's mips needs: recording makes no
+  // more unless a page lies beyond them.
+  size_t pipeline_count() const { return variants_.size(); }
 
  private:
   GpuComposer() = default;
@@ -128,8 +132,9 @@ class GpuComposer {
   // compose.comp specialised to what the parameters can take (compose_types.h,
   // TVT_COMPOSE_SPEC_*): the modes present, hex-tiling, direct or prefiltered pages, and which
   // parts of the prefiltered maths a page's mip can reach (prefiltered_parts()), and whether
-  // the 32-bit coordinate paths always hold (small_coordinates()). Made on first
-  // use and kept; a batch of mixed mips is one dispatch per variant.
+  // the 32-bit coordinate paths always hold (small_coordinates()). Those of the VT's mips are
+  // made by create() and set_params() (make_variants()), any other on first use; all are kept.
+  // A batch of mixed mips is one dispatch per variant.
   struct Variant {
     uint32_t modes = 0;
     bool hex = false;
@@ -140,6 +145,10 @@ class GpuComposer {
   };
   // The variant for the current parameters; nullptr after a failed Vulkan call.
   const vk::ComputePipeline* variant(bool prefiltered, uint32_t parts);
+  // Makes the variants the parameters need: the direct one, and the prefiltered ones of every
+  // mip of the VT when they ask for that strategy (create() and set_params(), so that no
+  // driver compiles inside a frame); false after a failed Vulkan call.
+  bool make_variants();
   // What the variants are specialised to, from params_ (create() and set_params()): record()
   // only looks them up.
   void derive_specialisation();

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <limits>
 #include <map>
+#include <set>
 
 #include "compose/packed_scene.h"
 #include "compose/reference_compositor.h"
@@ -230,6 +231,52 @@ TEST_F(GpuCompose, SpecialisedPipelinesChangeNoByte) {
           EXPECT_TRUE(a[i] == b[i]) << to_string(m) << " " << to_string(strategy) << (hex ? " hex" : "") << ": mip "
                                     << pages[i].mip;
       }
+}
+
+// A driver compiles at pipeline creation: no frame may be the first to need a variant.
+TEST_F(GpuCompose, EveryVariantOfTheVtsMipsIsMadeBeforeTheFirstPage) {
+  const SceneAssets& assets = default_assets(16);
+  auto packed = pack_scene(assets, options_for(Method::FbpbDpt, MipStrategy{1, true}));
+  ASSERT_TRUE(packed.ok()) << packed.error().message;
+  const gpu::TvtComposeParams& params = packed.value().params;
+  const uint32_t top = uint32_t(params.log2_vt) - uint32_t(std::countr_zero(uint32_t(params.page_texels)));
+  std::set<uint32_t> parts;
+  for (uint32_t mip = 1; mip <= top; ++mip) parts.insert(prefiltered_parts(params, mip));
+  ASSERT_GE(parts.size(), 2u);  // else this scene would not tell
+  auto c = GpuComposer::create(ctx(), packed.value(), 4);
+  ASSERT_TRUE(c.ok()) << c.error().message;
+  EXPECT_EQ(c.value()->pipeline_count(), 1 + parts.size());  // direct, and one per distinct set of parts
+  std::vector<PageId> pages;
+  for (uint32_t mip = 0; mip <= top; ++mip) pages.push_back(PageId{mip, 0, 0});
+  ASSERT_TRUE(c.value()->compose_pages(pages).ok());
+  EXPECT_EQ(c.value()->pipeline_count(), 1 + parts.size());
+  // Another strategy through set_params(): its variants are made there, not by the next page.
+  gpu::TvtComposeParams direct = params;
+  direct.prefiltered = 0;
+  c.value()->set_params(direct);
+  EXPECT_EQ(c.value()->pipeline_count(), 1 + parts.size());  // direct pages: the one made at creation
+  gpu::TvtComposeParams plain_modes = params;
+  for (int n = 1; n < plain_modes.material_count; ++n) plain_modes.materials[n].mode = gpu::TVT_MODE_BLENDMAP;
+  c.value()->set_params(plain_modes);
+  const size_t made = c.value()->pipeline_count();
+  EXPECT_GT(made, 1 + parts.size());
+  ASSERT_TRUE(c.value()->compose_pages(pages).ok());
+  EXPECT_EQ(c.value()->pipeline_count(), made);
+}
+
+// Parameters not from pack_scene, with a mode no build knows: every mode's path is kept (no
+// undefined shift), and the page composes.
+TEST_F(GpuCompose, AnUnknownModeKeepsEveryPath) {
+  const SceneAssets& assets = default_assets(16);
+  auto packed = pack_scene(assets, options_for(Method::BlendMap, MipStrategy{1, true}));
+  ASSERT_TRUE(packed.ok()) << packed.error().message;
+  auto c = GpuComposer::create(ctx(), packed.value(), 2);
+  ASSERT_TRUE(c.ok()) << c.error().message;
+  gpu::TvtComposeParams odd = packed.value().params;
+  odd.materials[1].mode = 40;
+  c.value()->set_params(odd);
+  const std::vector<PageId> pages{PageId{0, 1, 1}, PageId{3, 0, 0}};
+  EXPECT_TRUE(c.value()->compose_pages(pages).ok());
 }
 
 TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureFadeWithTheFootprint) {
