@@ -169,10 +169,9 @@ void GpuComposer::derive_specialisation() {
 bool GpuComposer::make_variants() {
   if (!variant(false, gpu::TVT_PART_ALL)) return false;
   if (!specialise_ || params_.prefiltered == 0) return true;
-  // Mips 1 to the one whose single page spans the VT (record() takes deeper mips as this one).
-  int page_bits = 0;
-  while (page_bits < 31 && (int64_t(1) << (page_bits + 1)) <= int64_t(params_.page_texels)) ++page_bits;
-  const uint32_t top = uint32_t(std::clamp(params_.log2_vt - page_bits, 1, int(parts_by_mip_.size()) - 1));
+  // Mips 1 to the VT's top one (a single page); record() takes deeper mips as the table's last.
+  const VtConfig vt{uint32_t(params_.log2_vt), uint32_t(params_.page_texels), uint32_t(params_.border_texels)};
+  const uint32_t top = uint32_t(std::clamp(int(vt.log2_size) - int(vt.log2_page()), 1, int(parts_by_mip_.size()) - 1));
   for (uint32_t mip = 1; mip <= top; ++mip)
     if (!variant(true, parts_by_mip_[mip])) return false;
   return true;
