@@ -171,7 +171,7 @@ bool GpuComposer::make_variants() {
   if (!specialise_ || params_.prefiltered == 0) return true;
   // Mips 1 to the VT's top one (a single page); record() takes deeper mips as the table's last.
   const VtConfig vt{uint32_t(params_.log2_vt), uint32_t(params_.page_texels), uint32_t(params_.border_texels)};
-  const uint32_t top = uint32_t(std::clamp(int(vt.log2_size) - int(vt.log2_page()), 1, int(parts_by_mip_.size()) - 1));
+  const uint32_t top = uint32_t(std::clamp(int(vt.mip_count()) - 1, 1, int(parts_by_mip_.size()) - 1));
   for (uint32_t mip = 1; mip <= top; ++mip)
     if (!variant(true, parts_by_mip_[mip])) return false;
   return true;
