@@ -115,6 +115,8 @@ void blend_map_of_patches(double settled, double mean, double var, double span, 
 // Linear fade: 0 at or below lo, 1 at or above hi (a step at lo when hi <= lo).
 double ramp(double v, double lo, double hi) {
   if (hi <= lo) return v >= lo ? 1.0 : 0.0;
+  if (v >= hi) return 1.0;  // as the shader: ends decided by comparison
+  if (v <= lo) return 0.0;
   return std::clamp((v - lo) / (hi - lo), 0.0, 1.0);
 }
 

@@ -59,9 +59,19 @@ uint32_t prefiltered_parts(const gpu::TvtComposeParams& p, uint32_t mip) {
       for (int k = 0; k < std::min(m.dpt_layer_count, gpu::TVT_MAX_DPT_LAYERS); ++k) {  // dpt()
         const double texels = m.dpt[k].patch_texels;
         if (!ramp_may_be_positive(texels, m.dpt_fade_lo, m.dpt_fade_hi)) continue;  // absent at every footprint
+        // The shader's ratio is exact for a power-of-two footprint (per_footprint()) and its
+        // ramp decides the ends by comparison, so the same float settles both tests exactly.
+        int e = 0;
+        const bool exact_ratio = std::frexp(footprint, &e) == 0.5 && std::abs(e) < 100;
+        const float ratio_f = exact_ratio ? std::ldexp(m.dpt[k].patch_texels, 1 - e) : 0.0f;
+        const float lo = p.prefilter_patch_lo, hi = p.prefilter_patch_hi;
         const double ratio = texels / footprint;
-        if (ramp_may_be_positive(ratio, p.prefilter_patch_lo, p.prefilter_patch_hi)) parts |= gpu::TVT_PART_DPT_POINT;
-        if (ramp_may_be_below_one(ratio, p.prefilter_patch_lo, p.prefilter_patch_hi)) {
+        const bool positive = exact_ratio ? (hi <= lo ? ratio_f >= lo : ratio_f > lo)
+                                          : ramp_may_be_positive(ratio, lo, hi);
+        const bool below_one = exact_ratio ? (hi <= lo ? ratio_f < lo : ratio_f < hi)
+                                           : ramp_may_be_below_one(ratio, lo, hi);
+        if (positive) parts |= gpu::TVT_PART_DPT_POINT;
+        if (below_one) {
           parts |= gpu::TVT_PART_DPT_EXPECT;
           const double patches = footprint / std::max(texels, 1e-6);
           if (ramp_may_be_below_one(patches, gpu::TVT_PATCH_SAMPLES_LO, gpu::TVT_PATCH_SAMPLES_HI))

@@ -39,7 +39,10 @@ void main() {
   // Never more samples per side than the 2^mip level-0 texels the texel covers: mip 0 is direct.
   const int64_t s = min(int64_t(P.supersample), int64_t(1) << mip);
   const int sub_shift = mip + TVT_FIXED_BITS;
-  const float footprint = exp2(float(mip)) / float(s);
+  // 2^mip / s, exactly for a power-of-two s (every validated one): the host decides from it
+  // which prefiltered parts a mip's pages reach (prefiltered_parts()).
+  const int log2_s = findMSB(int(s));
+  const float footprint = s == (int64_t(1) << log2_s) ? ldexp(1.0, mip - log2_s) : exp2(float(mip)) / float(s);
   const bool prefiltered = k_compose_prefiltered && P.prefiltered != 0 && mip > 0;  // mip 0 is direct under every strategy
   vec4 sum = vec4(0.0);
   for (int64_t sy = 0; sy < s; ++sy)

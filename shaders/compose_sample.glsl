@@ -20,9 +20,20 @@ bool mode_is(int mode, int m) { return (k_compose_modes & (1u << uint(m))) != 0u
 float clamp01(float v) { return (isnan(v) || isinf(v)) ? 0.0 : clamp(v, 0.0, 1.0); }
 float safe_pow(float b, float e) { return b <= 0.0 ? 0.0 : pow(b, e); }
 float blend_map(float b, float a, float s) { return smoothstep(1.0 - clamp01(b) - s, 1.0 - clamp01(b) + s, s + a * (1.0 - 2.0 * s)); }
+// Exactly 0 at or below lo and 1 at or above hi, decided by comparison before any division, so
+// that the host can tell from the same float v which side of a ramp a footprint is on.
 float ramp(float v, float lo, float hi) {
   if (hi <= lo) return v >= lo ? 1.0 : 0.0;
+  if (v >= hi) return 1.0;
+  if (v <= lo) return 0.0;
   return clamp((v - lo) / (hi - lo), 0.0, 1.0);
+}
+// v / footprint, exact when the footprint is a power of two (every footprint compose.comp
+// passes): an exponent shift instead of a division, whose rounding a device may choose.
+float per_footprint(float v, float footprint) {
+  int e;
+  const float m = frexp(footprint, e);
+  return m == 0.5 ? ldexp(v, 1 - e) : v / footprint;
 }
 
 // Prefiltered blend map (reference_compositor.cpp blend_map_expected): the means over A uniform
@@ -461,11 +472,12 @@ void dpt(int n, int64_t x_fp, int64_t y_fp, float footprint, float plain, float 
   float settled = 0.0, mean = 0.0, var = 0.0, span = 0.0;  // prefiltered: b = settled + X, X in [0, span]
   const int layers = P.materials[n].dpt_layer_count;
   for (int k = 0; k < layers; ++k) {
-    const float fade = ramp(P.materials[n].dpt[k].patch_texels / footprint, P.materials[n].dpt_fade_lo,
+    const float fade = ramp(per_footprint(P.materials[n].dpt[k].patch_texels, footprint), P.materials[n].dpt_fade_lo,
                             P.materials[n].dpt_fade_hi);
     if (prefiltered) {
       const float present = ramp(P.materials[n].dpt[k].patch_texels, P.materials[n].dpt_fade_lo, P.materials[n].dpt_fade_hi);
-      const float exact = ramp(P.materials[n].dpt[k].patch_texels / footprint, P.prefilter_patch_lo, P.prefilter_patch_hi);
+      const float exact =
+          ramp(per_footprint(P.materials[n].dpt[k].patch_texels, footprint), P.prefilter_patch_lo, P.prefilter_patch_hi);
       fade_max = max(fade_max, present);
       if (present <= 0.0) continue;
       // A cleared part bit: its share is zero for every layer at this footprint (TVT_PART_*).

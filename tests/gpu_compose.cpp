@@ -303,12 +303,16 @@ TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureFadeWithTheFootprint)
   using namespace gpu;
   // Footprint 2: 32 texels a patch, exact; features exact (LOD 1 < 2).
   EXPECT_EQ(prefiltered_parts(p, 1), TVT_PART_DPT_POINT | TVT_PART_FEATURES);
-  // LOD 2 and 3 sit on the feature fade's ends, and footprint 32 on the patch ramp's upper end:
-  // kept both ways (conservative).
+  // LOD 2 and 3 sit on the feature fade's ends: kept both ways (conservative: a float log2).
   EXPECT_EQ(prefiltered_parts(p, 2), TVT_PART_DPT_POINT | TVT_PART_FEATURES | TVT_PART_FEATURE_EXPECT);
   EXPECT_EQ(prefiltered_parts(p, 3), TVT_PART_DPT_POINT | TVT_PART_FEATURES | TVT_PART_FEATURE_EXPECT);
   EXPECT_EQ(prefiltered_parts(p, 4), TVT_PART_DPT_POINT | TVT_PART_FEATURE_EXPECT);
-  EXPECT_EQ(prefiltered_parts(p, 5), TVT_PART_ALL & ~TVT_PART_FEATURES);
+  // Footprint 32 is on the patch ramp's upper end (2 texels of patch a texel) and 128 on its
+  // lower end: the shader's ratio is exact at power-of-two footprints and its ramp is exactly 1
+  // and 0 there, so the expectation (and its samples) and the point value are left out.
+  EXPECT_EQ(prefiltered_parts(p, 5), TVT_PART_DPT_POINT | TVT_PART_FEATURE_EXPECT);
+  EXPECT_EQ(prefiltered_parts(p, 6), TVT_PART_ALL & ~TVT_PART_FEATURES);
+  EXPECT_EQ(prefiltered_parts(p, 7), TVT_PART_DPT_EXPECT | TVT_PART_DPT_SAMPLES | TVT_PART_FEATURE_EXPECT);
   // Footprint 256: four patches a side, in expectation from samples; 1024: 16, expectation alone.
   EXPECT_EQ(prefiltered_parts(p, 8), TVT_PART_DPT_EXPECT | TVT_PART_DPT_SAMPLES | TVT_PART_FEATURE_EXPECT);
   EXPECT_EQ(prefiltered_parts(p, 10), TVT_PART_DPT_EXPECT | TVT_PART_FEATURE_EXPECT);
