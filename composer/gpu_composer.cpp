@@ -25,6 +25,10 @@ bool ramp_may_be_below_one(double v, double lo, double hi) {
   const double v_lo = v - std::abs(v) * k_slack - 1e-30;
   return hi <= lo ? v_lo < lo : v_lo < hi;
 }
+// The same where the host holds the shader's own float v: ramp() decides its ends by
+// comparison, so no slack is needed.
+bool ramp_is_positive(float v, float lo, float hi) { return hi <= lo ? v >= lo : v > lo; }
+bool ramp_is_below_one(float v, float lo, float hi) { return hi <= lo ? v < lo : v < hi; }
 
 }  // namespace
 
@@ -48,6 +52,10 @@ uint32_t prefiltered_parts(const gpu::TvtComposeParams& p, uint32_t mip) {
   // compose.comp's footprint: 2^mip level-0 texels over at most 2^mip sub-samples a side.
   const double s = std::min(std::max(double(p.supersample), 1.0), std::ldexp(1.0, int(std::min(mip, 62u))));
   const double footprint = std::max(std::ldexp(1.0, int(std::min(mip, 62u))) / s, 1.0 / 256.0);
+  // A power-of-two footprint (every validated one) makes the shader's patch ratio exact
+  // (per_footprint(): an exponent shift by 1 - e), so the host can evaluate the same float.
+  int e = 0;
+  const bool exact_ratio = std::frexp(footprint, &e) == 0.5 && std::abs(e) < 100;
   uint32_t parts = 0;
   for (int n = 1; n < p.material_count && n < gpu::TVT_MAX_MATERIALS; ++n) {
     const gpu::TvtMaterial& m = p.materials[n];
@@ -59,19 +67,12 @@ uint32_t prefiltered_parts(const gpu::TvtComposeParams& p, uint32_t mip) {
       for (int k = 0; k < std::min(m.dpt_layer_count, gpu::TVT_MAX_DPT_LAYERS); ++k) {  // dpt()
         const double texels = m.dpt[k].patch_texels;
         if (!ramp_may_be_positive(texels, m.dpt_fade_lo, m.dpt_fade_hi)) continue;  // absent at every footprint
-        // The shader's ratio is exact for a power-of-two footprint (per_footprint()) and its
-        // ramp decides the ends by comparison, so the same float settles both tests exactly.
-        int e = 0;
-        const bool exact_ratio = std::frexp(footprint, &e) == 0.5 && std::abs(e) < 100;
-        const float ratio_f = exact_ratio ? std::ldexp(m.dpt[k].patch_texels, 1 - e) : 0.0f;
         const float lo = p.prefilter_patch_lo, hi = p.prefilter_patch_hi;
+        const float ratio_f = exact_ratio ? std::ldexp(m.dpt[k].patch_texels, 1 - e) : 0.0f;
         const double ratio = texels / footprint;
-        const bool positive = exact_ratio ? (hi <= lo ? ratio_f >= lo : ratio_f > lo)
-                                          : ramp_may_be_positive(ratio, lo, hi);
-        const bool below_one = exact_ratio ? (hi <= lo ? ratio_f < lo : ratio_f < hi)
-                                           : ramp_may_be_below_one(ratio, lo, hi);
-        if (positive) parts |= gpu::TVT_PART_DPT_POINT;
-        if (below_one) {
+        if (exact_ratio ? ramp_is_positive(ratio_f, lo, hi) : ramp_may_be_positive(ratio, lo, hi))
+          parts |= gpu::TVT_PART_DPT_POINT;
+        if (exact_ratio ? ramp_is_below_one(ratio_f, lo, hi) : ramp_may_be_below_one(ratio, lo, hi)) {
           parts |= gpu::TVT_PART_DPT_EXPECT;
           const double patches = footprint / std::max(texels, 1e-6);
           if (ramp_may_be_below_one(patches, gpu::TVT_PATCH_SAMPLES_LO, gpu::TVT_PATCH_SAMPLES_HI))

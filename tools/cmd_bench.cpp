@@ -45,8 +45,10 @@ struct Row {
 
 // Times every method on one page set, interleaved round after round; each method keeps its
 // fastest batch, so the ratios compare like with like even when the machine's load drifts.
+// Rows are named `names[i]`, or by method (then hex) when no names are given.
 Result<std::vector<Row>> measure(GpuComposer& composer, const std::vector<PackedScene>& packed,
-                                 const std::vector<PageId>& pages, const BenchComposeArgs& a, double texels_per_page) {
+                                 const std::vector<PageId>& pages, const BenchComposeArgs& a, double texels_per_page,
+                                 const std::vector<std::string>& names = {}) {
   std::vector<Row> rows(packed.size());
   std::vector<double> best(packed.size(), 1e300);
   for (const PackedScene& p : packed) {  // warm-up: pipeline and caches
@@ -63,7 +65,8 @@ Result<std::vector<Row>> measure(GpuComposer& composer, const std::vector<Packed
   constexpr size_t k_methods = std::size(k_all_methods);
   for (size_t i = 0; i < packed.size(); ++i) {
     Row& row = rows[i];
-    row.method = std::string(to_string(k_all_methods[i % k_methods])) + (i >= k_methods ? " hex" : "");
+    row.method = i < names.size() ? names[i]
+                                  : std::string(to_string(k_all_methods[i % k_methods])) + (i >= k_methods ? " hex" : "");
     row.gpu_pages_s = double(pages.size()) / best[i];
     row.gpu_mtexel_s = row.gpu_pages_s * texels_per_page * 1e-6;
     if (!a.skip_cpu) {
@@ -223,11 +226,10 @@ int run_bench_compose(const BenchComposeArgs& a) {
     }
   BenchComposeArgs gpu_only = a;
   gpu_only.skip_cpu = true;
-  auto measured_scene = measure(*composer.value(), as_written, spread, gpu_only, texels_per_page);
+  auto measured_scene = measure(*composer.value(), as_written, spread, gpu_only, texels_per_page,
+                                {"direct", "prefiltered", "direct no-hex", "prefiltered no-hex"});
   if (!measured_scene) return fail(cmd, measured_scene.error().message, 1);
-  std::vector<Row>& rows_scene = measured_scene.value();  // measure() names rows by method: renamed here
-  for (size_t k = 0; k < rows_scene.size(); ++k)
-    rows_scene[k].method = std::string(k % 2 == 0 ? "direct" : "prefiltered") + (k >= 2 ? " no-hex" : "");
+  const std::vector<Row>& rows_scene = measured_scene.value();
   std::printf("\nThe scene as written (each material its own mode), spread pages, by mip strategy (mip 0 is direct under "
               "both):\n%-12s %12s %14s %12s %14s\n",
               "strategy", "pages/s", "vs direct", "no-hex p/s", "vs direct");
