@@ -64,21 +64,22 @@ void blend_map_expected(float b, float a_mean, float a_var, float s, out float e
 }
 
 // The blend map's means over A in two pieces, `spread` = (p, delta, h_lo, h_hi) from the spread
-// chain (reference_compositor.cpp blend_map_spread).
+// chain (reference_compositor.cpp blend_map_spread). Where A is one piece (delta too small, or p
+// at an end) both calls see it and the first has weight 1, which gives its values exactly: one
+// code path for both cases, which a SIMD-on-CPU device runs once instead of both.
 void blend_map_spread(float b, float a_mean, vec4 spread, float s, out float e, out float dev) {
   const float p = clamp01(spread.x), delta = max(spread.y, 0.0);
-  if (!(delta > 1e-4) || p <= 0.0 || p >= 1.0) {
-    const float var = (p * spread.z * spread.z + (1.0 - p) * spread.w * spread.w) / 3.0 + delta * delta;
-    blend_map_expected(b, a_mean, var, s, e, dev);
-    return;
-  }
-  const float lo = max(a_mean - delta * sqrt((1.0 - p) / p), -1.0);
-  const float hi = min(a_mean + delta * sqrt(p / (1.0 - p)), 2.0);
+  const bool two = delta > 1e-4 && p > 0.0 && p < 1.0;
+  const float lo = two ? max(a_mean - delta * sqrt((1.0 - p) / p), -1.0) : a_mean;
+  const float hi = two ? min(a_mean + delta * sqrt(p / (1.0 - p)), 2.0) : a_mean;
+  const float var_lo = two ? spread.z * spread.z / 3.0
+                           : (p * spread.z * spread.z + (1.0 - p) * spread.w * spread.w) / 3.0 + delta * delta;
+  const float w_lo = two ? p : 1.0;
   float e_lo, d_lo, e_hi, d_hi;
-  blend_map_expected(b, lo, spread.z * spread.z / 3.0, s, e_lo, d_lo);
+  blend_map_expected(b, lo, var_lo, s, e_lo, d_lo);
   blend_map_expected(b, hi, spread.w * spread.w / 3.0, s, e_hi, d_hi);
-  e = p * e_lo + (1.0 - p) * e_hi;
-  dev = p * (d_lo + e_lo * (lo - a_mean)) + (1.0 - p) * (d_hi + e_hi * (hi - a_mean));
+  e = w_lo * e_lo + (1.0 - w_lo) * e_hi;
+  dev = w_lo * (d_lo + e_lo * (lo - a_mean)) + (1.0 - w_lo) * (d_hi + e_hi * (hi - a_mean));
 }
 
 // Bilinear weight at a terrain position, clamped at the terrain edge. The position becomes a
@@ -389,21 +390,21 @@ float patch_second_moment(int n, int k, float q) {
 }
 
 // The blend map's means over a patch sum settled + X, X in [0, span] with this mean and variance
-// taken as a two-point distribution (reference_compositor.cpp blend_map_of_patches).
+// taken as a two-point distribution (reference_compositor.cpp blend_map_of_patches). Where X is
+// taken as its mean both calls see settled + mean and the first has weight 1 (as above).
 void blend_map_of_patches(float settled, float mean, float var, float span, float a_mean, vec4 a_spread, float s,
                           out float e, out float dev) {
   const float mu = span > 0.0 ? clamp(mean / span, 0.0, 1.0) : 0.0;
   const float sd = span > 0.0 ? sqrt(clamp(var, 0.0, mu * (1.0 - mu) * span * span)) / span : 0.0;
-  if (!part(TVT_PART_DPT_EXPECT) || !(sd > 1e-4) || mu <= 0.0 || mu >= 1.0) {
-    blend_map_spread(min(settled + mean, 1.0), a_mean, a_spread, s, e, dev);
-    return;
-  }
-  const float low = mu - sd * sqrt(mu / (1.0 - mu)), high = mu + sd * sqrt((1.0 - mu) / mu);
+  const bool two = part(TVT_PART_DPT_EXPECT) && sd > 1e-4 && mu > 0.0 && mu < 1.0;
+  const float b_low = two ? min(settled + (mu - sd * sqrt(mu / (1.0 - mu))) * span, 1.0) : min(settled + mean, 1.0);
+  const float b_high = two ? min(settled + (mu + sd * sqrt((1.0 - mu) / mu)) * span, 1.0) : b_low;
+  const float w_high = two ? mu : 0.0;
   float e_low, d_low, e_high, d_high;
-  blend_map_spread(min(settled + low * span, 1.0), a_mean, a_spread, s, e_low, d_low);
-  blend_map_spread(min(settled + high * span, 1.0), a_mean, a_spread, s, e_high, d_high);
-  e = (1.0 - mu) * e_low + mu * e_high;
-  dev = (1.0 - mu) * d_low + mu * d_high;
+  blend_map_spread(b_low, a_mean, a_spread, s, e_low, d_low);
+  blend_map_spread(b_high, a_mean, a_spread, s, e_high, d_high);
+  e = (1.0 - w_high) * e_low + w_high * e_high;
+  dev = (1.0 - w_high) * d_low + w_high * d_high;
 }
 
 // One DPT layer's w (eq 4.1-4.3) at a terrain position.
@@ -465,9 +466,11 @@ void patch_samples(int n, int k, int64_t x_fp, int64_t y_fp, float footprint, in
   second = mix(s2, second, g);
 }
 
-// DPT eq 4.1-4.4, Algorithms 2-3. Prefiltered: as reference_compositor.cpp dpt().
+// DPT eq 4.1-4.4, Algorithms 2-3. Prefiltered: as reference_compositor.cpp dpt(). `plain_b` and
+// `plain_dev`: the blend map of the plain weight (and, prefiltered, its deviation), which the
+// caller has for the other modes as well.
 void dpt(int n, int64_t x_fp, int64_t y_fp, float footprint, float plain, float height_a, bool prefiltered, vec4 a_spread,
-         out float b_out, out float h_out, out float dev) {
+         float plain_b, float plain_dev, out float b_out, out float h_out, out float dev) {
   float b = 0.0, h = 0.0, fade_max = 0.0;
   float settled = 0.0, mean = 0.0, var = 0.0, span = 0.0;  // prefiltered: b = settled + X, X in [0, span]
   const int layers = P.materials[n].dpt_layer_count;
@@ -508,16 +511,15 @@ void dpt(int n, int64_t x_fp, int64_t y_fp, float footprint, float plain, float 
   h_out = h;
   const float s = P.materials[n].blend_sharpness;
   if (prefiltered) {
-    float e_patch, d_patch, e_plain, d_plain;
+    float e_patch, d_patch;
     blend_map_of_patches(settled, mean, var, span, height_a, a_spread, s, e_patch, d_patch);
-    blend_map_spread(plain, height_a, a_spread, s, e_plain, d_plain);
-    b_out = fade_max * e_patch + (1.0 - fade_max) * e_plain;
-    dev = fade_max * d_patch + (1.0 - fade_max) * d_plain;
+    b_out = fade_max * e_patch + (1.0 - fade_max) * plain_b;
+    dev = fade_max * d_patch + (1.0 - fade_max) * plain_dev;
     return;
   }
   dev = 0.0;
   b = blend_map(b, height_a, s);
-  b_out = fade_max * b + (1.0 - fade_max) * blend_map(plain, height_a, s);
+  b_out = fade_max * b + (1.0 - fade_max) * plain_b;
 }
 
 // `prefiltered`: mips >= 1 of the prefiltered strategy (reference_compositor.cpp).
@@ -557,30 +559,34 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
     float feature_shift = 0.0;  // prefiltered FBPB: weight of the features' colour moment
     vec4 feature_moment = vec4(0.0);
     const float s = P.materials[n].blend_sharpness;
+    // What several modes read, worked out once: every branch below is code a SIMD-on-CPU device
+    // runs for each material whatever its mode. The blend map of the plain weight (blendmap, the
+    // fallback of FBPB, DPT away from its patches) and DPT's value (dpt, fbpb+dpt).
+    float plain_b = 0.0, plain_dev = 0.0;
+    if (!mode_is(mode, TVT_MODE_LINEAR)) {
+      if (prefiltered) blend_map_spread(plain, colour.a, a_spread, s, plain_b, plain_dev);
+      else plain_b = blend_map(plain, colour.a, s);
+    }
+    float dpt_b = 0.0, dpt_h = colour.a, dpt_dev = 0.0;
+    if (mode_is(mode, TVT_MODE_DPT) || mode_is(mode, TVT_MODE_FBPB_DPT))
+      dpt(n, x_fp, y_fp, footprint, plain, colour.a, prefiltered, a_spread, plain_b, plain_dev, dpt_b, dpt_h, dpt_dev);
 
     if (mode_is(mode, TVT_MODE_LINEAR)) {
       b = weight_sum > 0.0 ? min(1.0, P.linear_boost * plain / weight_sum) : 0.0;
     } else if (mode_is(mode, TVT_MODE_BLENDMAP)) {
-      if (prefiltered) {
-        blend_map_spread(plain, colour.a, a_spread, s, b, dev);
-        dev_height = true;
-      } else {
-        b = blend_map(plain, colour.a, s);
-      }
+      b = plain_b;
+      dev = plain_dev;
+      dev_height = prefiltered;
     } else if (mode_is(mode, TVT_MODE_DPT)) {
-      dpt(n, x_fp, y_fp, footprint, plain, colour.a, prefiltered, a_spread, b, height, dev);
+      b = dpt_b;
+      height = dpt_h;
+      dev = dpt_dev;
     } else if (mode_is(mode, TVT_MODE_FBPB) || mode_is(mode, TVT_MODE_FBPB_DPT)) {
-      float non_feature = 0.0;
-      float dpt_h = colour.a;
-      float unused;
-      if (mode_is(mode, TVT_MODE_FBPB_DPT)) dpt(n, x_fp, y_fp, footprint, plain, colour.a, prefiltered, a_spread, non_feature, dpt_h, unused);
+      const float non_feature = dpt_b;
       const float fade_end = max(P.materials[n].fbpb_fade_hi, P.materials[n].fbpb_fade_lo);
       const float fade = prefiltered ? 1.0 - ramp(lod, fade_end, fade_end + 1.0)
                                      : 1.0 - ramp(lod, P.materials[n].fbpb_fade_lo, P.materials[n].fbpb_fade_hi);
-      float fallback;
-      if (mode_is(mode, TVT_MODE_FBPB_DPT)) fallback = non_feature;
-      else if (prefiltered) blend_map_spread(plain, colour.a, a_spread, s, fallback, unused);
-      else fallback = blend_map(plain, colour.a, s);
+      float fallback = mode_is(mode, TVT_MODE_FBPB_DPT) ? non_feature : plain_b;
       const float fade0 = prefiltered && fade < 1.0
                               ? 1.0 - ramp(material_lod(n, 1.0), P.materials[n].fbpb_fade_lo, P.materials[n].fbpb_fade_hi)
                               : 0.0;
