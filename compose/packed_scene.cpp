@@ -238,6 +238,7 @@ Result<PackedScene> pack_scene(const SceneAssets& assets, const ComposeOptions& 
     gpu::TvtMaterial& g = p.materials[n];
     g.period_fp = to_fixed(md.period_texels);
     g.resolution = info.resolution;
+    g.lod_bias = float(std::log2(double(g.resolution) * 256.0 / double(g.period_fp)));
     g.log2_resolution = std::countr_zero(unsigned(g.resolution));
     g.mip_count = info.mip_count;
     g.texel_offset = uint32_t(out.texel_words);

@@ -59,7 +59,8 @@ uint32_t prefiltered_parts(const gpu::TvtComposeParams& p, uint32_t mip) {
   uint32_t parts = 0;
   for (int n = 1; n < p.material_count && n < gpu::TVT_MAX_MATERIALS; ++n) {
     const gpu::TvtMaterial& m = p.materials[n];
-    bool finite = std::isfinite(double(m.fbpb_fade_lo)) && std::isfinite(double(m.fbpb_fade_hi)) && m.period_fp > 0;
+    bool finite = std::isfinite(double(m.fbpb_fade_lo)) && std::isfinite(double(m.fbpb_fade_hi)) &&
+                  std::isfinite(double(m.lod_bias)) && m.period_fp > 0;
     for (int k = 0; k < std::min(m.dpt_layer_count, gpu::TVT_MAX_DPT_LAYERS); ++k)
       finite = finite && std::isfinite(double(m.dpt[k].patch_texels));
     if (!finite) return gpu::TVT_PART_ALL;  // not a validated scene: keep every part
@@ -80,13 +81,19 @@ uint32_t prefiltered_parts(const gpu::TvtComposeParams& p, uint32_t mip) {
         }
       }
     if (m.mode == gpu::TVT_MODE_FBPB || m.mode == gpu::TVT_MODE_FBPB_DPT) {  // compose_sample()'s FBPB branch
-      const auto lod_at = [&](double f) { return std::log2(f * double(m.resolution) * 256.0 / double(m.period_fp)); };
-      const double lod = lod_at(footprint), fade_end = std::max(m.fbpb_fade_hi, m.fbpb_fade_lo);
-      const double lod_slack = 1e-3;  // float log2 against double
-      if (lod - lod_slack < fade_end + 1.0) parts |= gpu::TVT_PART_FEATURES;                 // fade > 0
-      if (lod + lod_slack > fade_end &&                                                      // fade < 1
-          ramp_may_be_below_one(lod_at(1.0) - lod_slack, m.fbpb_fade_lo, m.fbpb_fade_hi))  // fade0 > 0
-        parts |= gpu::TVT_PART_FEATURE_EXPECT;
+      // The LOD fade of the features: fade = 1 - ramp(lod, end, end + 1), fade0 = 1 - ramp(LOD at
+      // one texel, lo, hi); material_lod() is exactly k + lod_bias at a footprint of 2^k.
+      const float fade_end = std::max(m.fbpb_fade_hi, m.fbpb_fade_lo), fade_top = fade_end + 1.0f;
+      const bool fade0_positive = ramp_is_below_one(m.lod_bias, m.fbpb_fade_lo, m.fbpb_fade_hi);
+      if (exact_ratio) {
+        const float lod = float(e - 1) + m.lod_bias;
+        if (ramp_is_below_one(lod, fade_end, fade_top)) parts |= gpu::TVT_PART_FEATURES;  // fade > 0
+        if (ramp_is_positive(lod, fade_end, fade_top) && fade0_positive) parts |= gpu::TVT_PART_FEATURE_EXPECT;
+      } else {
+        const double lod = std::log2(footprint) + double(m.lod_bias), slack = 1e-3;  // a float log2
+        if (lod - slack < double(fade_top)) parts |= gpu::TVT_PART_FEATURES;
+        if (lod + slack > double(fade_end) && fade0_positive) parts |= gpu::TVT_PART_FEATURE_EXPECT;
+      }
     }
   }
   return parts;

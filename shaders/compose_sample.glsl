@@ -177,8 +177,13 @@ void material_texel_coord(int n, int64_t pos_fp, out int64_t global_, out float 
   frac_ = float(num - global_ * period) / float(period);
 }
 
+// The material's LOD at a footprint of `footprint` level-0 texels: log2(footprint) + lod_bias,
+// exactly k + lod_bias at a power-of-two footprint 2^k (every one compose.comp passes), which
+// the host evaluates as the same float (prefiltered_parts()).
 float material_lod(int n, float footprint) {
-  return log2(footprint * float(P.materials[n].resolution) * 256.0 / float(P.materials[n].period_fp));
+  int e;
+  const float m = frexp(footprint, e);
+  return (m == 0.5 ? float(e - 1) : log2(footprint)) + P.materials[n].lod_bias;
 }
 
 // The trilinear pair of levels of material n at LOD `lod`: l0, l1 and the weight t of l1

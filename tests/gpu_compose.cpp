@@ -303,10 +303,17 @@ TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureFadeWithTheFootprint)
   using namespace gpu;
   // Footprint 2: 32 texels a patch, exact; features exact (LOD 1 < 2).
   EXPECT_EQ(prefiltered_parts(p, 1), TVT_PART_DPT_POINT | TVT_PART_FEATURES);
-  // LOD 2 and 3 sit on the feature fade's ends: kept both ways (conservative: a float log2).
-  EXPECT_EQ(prefiltered_parts(p, 2), TVT_PART_DPT_POINT | TVT_PART_FEATURES | TVT_PART_FEATURE_EXPECT);
-  EXPECT_EQ(prefiltered_parts(p, 3), TVT_PART_DPT_POINT | TVT_PART_FEATURES | TVT_PART_FEATURE_EXPECT);
+  // LOD 2 and 3 sit on the feature fade's ends (fade 1 and 0): the LOD at a power-of-two
+  // footprint is exactly mip + lod_bias, so only the exact features at LOD 2 and only their
+  // expectation at LOD 3.
+  EXPECT_EQ(prefiltered_parts(p, 2), TVT_PART_DPT_POINT | TVT_PART_FEATURES);
+  EXPECT_EQ(prefiltered_parts(p, 3), TVT_PART_DPT_POINT | TVT_PART_FEATURE_EXPECT);
   EXPECT_EQ(prefiltered_parts(p, 4), TVT_PART_DPT_POINT | TVT_PART_FEATURE_EXPECT);
+  // Two material texels a level-0 texel: the LOD is the mip + 1 (as pack_scene() sets it).
+  fbpb.lod_bias = 1.0f;
+  EXPECT_EQ(prefiltered_parts(p, 1), TVT_PART_DPT_POINT | TVT_PART_FEATURES);
+  EXPECT_EQ(prefiltered_parts(p, 2), TVT_PART_DPT_POINT | TVT_PART_FEATURE_EXPECT);
+  fbpb.lod_bias = 0.0f;
   // Footprint 32 is on the patch ramp's upper end (2 texels of patch a texel) and 128 on its
   // lower end: the shader's ratio is exact at power-of-two footprints and its ramp is exactly 1
   // and 0 there, so the expectation (and its samples) and the point value are left out.
@@ -329,6 +336,19 @@ TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureFadeWithTheFootprint)
   dpt.dpt[0].patch_texels = 64.0f;
   fbpb.period_fp = 0;
   EXPECT_EQ(prefiltered_parts(p, 4), TVT_PART_ALL);
+}
+
+TEST(PackScene, LodBiasIsTheMaterialLodAtOneLevel0Texel) {
+  const SceneAssets& assets = default_assets(16);
+  auto packed = pack_scene(assets, options_for(Method::FbpbDpt));
+  ASSERT_TRUE(packed.ok()) << packed.error().message;
+  const gpu::TvtComposeParams& p = packed.value().params;
+  for (int n = 0; n < p.material_count; ++n) {
+    const gpu::TvtMaterial& m = p.materials[n];
+    EXPECT_EQ(m.lod_bias, float(std::log2(double(m.resolution) * 256.0 / double(m.period_fp)))) << n;
+  }
+  // The cobbles: 512 texels over a 256-texel period, two material texels a level-0 texel.
+  EXPECT_EQ(p.materials[4].lod_bias, 1.0f);
 }
 
 TEST(SmallCoordinates, HoldUpToTwoToThe21AndForPatchesAndHexTilesThatFit) {

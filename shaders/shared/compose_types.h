@@ -140,7 +140,11 @@ struct TvtMaterial {      // 352 bytes
   float dpt_fade_hi;      // ... and fully present above this many
   float fbpb_fade_lo;     // FBPB fades to blend map between these material LODs
   float fbpb_fade_hi;
-  float pad0, pad1;
+  // Material LOD at a footprint of one level-0 texel, log2(R_n * 256 / period_fp): the LOD at
+  // a power-of-two footprint 2^k is k + lod_bias, one correctly rounded add that the host
+  // repeats to decide which prefiltered parts a mip reaches.
+  float lod_bias;
+  float pad1;
   // Hex-tiling (anti-repetition, docs/composition.md): 0 = off; else the triangle lattice's
   // edge L (even) and row height H = round(L sqrt(3) / 2), in material texels.
   int hex_edge;
