@@ -28,12 +28,19 @@ float ramp(float v, float lo, float hi) {
   if (v <= lo) return 0.0;
   return clamp((v - lo) / (hi - lo), 0.0, 1.0);
 }
-// v / footprint, exact when the footprint is a power of two (every footprint compose.comp
-// passes): an exponent shift instead of a division, whose rounding a device may choose.
-float per_footprint(float v, float footprint) {
+// Whether the footprint is a power of two 2^k (every footprint compose.comp passes), and k: the
+// host repeats what follows from it exactly (prefiltered_parts()).
+bool footprint_log2(float footprint, out int k) {
   int e;
-  const float m = frexp(footprint, e);
-  return m == 0.5 ? ldexp(v, 1 - e) : v / footprint;
+  const bool pow2 = frexp(footprint, e) == 0.5;
+  k = e - 1;
+  return pow2;
+}
+// v / footprint, exact at a power-of-two footprint: an exponent shift instead of a division,
+// whose rounding a device may choose.
+float per_footprint(float v, float footprint) {
+  int k;
+  return footprint_log2(footprint, k) ? ldexp(v, -k) : v / footprint;
 }
 
 // Prefiltered blend map (reference_compositor.cpp blend_map_expected): the means over A uniform
@@ -181,9 +188,8 @@ void material_texel_coord(int n, int64_t pos_fp, out int64_t global_, out float 
 // exactly k + lod_bias at a power-of-two footprint 2^k (every one compose.comp passes), which
 // the host evaluates as the same float (prefiltered_parts()).
 float material_lod(int n, float footprint) {
-  int e;
-  const float m = frexp(footprint, e);
-  return (m == 0.5 ? float(e - 1) : log2(footprint)) + P.materials[n].lod_bias;
+  int k;
+  return (footprint_log2(footprint, k) ? float(k) : log2(footprint)) + P.materials[n].lod_bias;
 }
 
 // The trilinear pair of levels of material n at LOD `lod`: l0, l1 and the weight t of l1
