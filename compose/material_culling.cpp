@@ -96,15 +96,20 @@ MaterialNeeds MaterialCuller::needs(const PageId& page, uint32_t mask) const {
     const double level = std::clamp(lod - k_margin, 0.0, double(std::max(m.mip_count - 1, 0)));
     out.mask |= bit;
     out.finest_level[size_t(n)] = uint8_t(std::floor(level));
-    // The FBPB branch reads the meta-texture while fade = 1 - ramp(lod, lo, hi) > 0, and the
-    // prefiltered strategy its feature statistics chain wherever fade < 1 and level 0 has
-    // features (fade0 > 0: the level-0 LOD below the fade's end).
+    // Direct, the FBPB branch reads the meta-texture while fade = 1 - ramp(lod, lo, hi) > 0.
+    // Prefiltered, it reads it (the features at points, then their statistics chain) at every
+    // mip where level 0 has features (fade0 > 0: the level-0 LOD below the fade's end).
     const bool fbpb = n > 0 && (m.mode == gpu::TVT_MODE_FBPB || m.mode == gpu::TVT_MODE_FBPB_DPT);
     const bool prefiltered = params_.prefiltered != 0 && page.mip > 0;
     const double fade_end = prefiltered ? fbpb_prefiltered_end(m) : fbpb_fade_end(m);
     const double level0_lod = std::log2(double(m.resolution) * 256.0 / double(m.period_fp));
     const bool expectation = prefiltered && level0_lod - k_margin < fbpb_fade_end(m);
-    if (fbpb && m.meta_offset != gpu::TVT_NO_META && (lod - k_margin < fade_end || expectation)) out.meta_mask |= bit;
+    if (fbpb && m.meta_offset != gpu::TVT_NO_META && (prefiltered ? expectation : lod - k_margin < fade_end))
+      out.meta_mask |= bit;
+    // Prefiltered exact features sample the texture at points one LOD finer than the footprint.
+    if (fbpb && prefiltered && expectation && m.meta_offset != gpu::TVT_NO_META && lod - k_margin < fade_end)
+      out.finest_level[size_t(n)] =
+          uint8_t(std::floor(std::clamp(lod - 1.0 - k_margin, 0.0, double(std::max(m.mip_count - 1, 0)))));
   }
   return out;
 }

@@ -294,6 +294,34 @@ struct Ctx {
     return ft;
   }
 
+  // FBPB's w at global material texel (gx, gy): eq 3.1 with Algorithm 1's chipped holes (which
+  // darken `colour`, the material there, and show the layer below); `non_feature` is what a
+  // non-feature texel blends with under FBPB+DPT (`with_dpt`).
+  double fbpb_exact(const gpu::TvtMaterial& m, int64_t gx, int64_t gy, double plain, bool with_dpt, double non_feature,
+                    glm::dvec4& colour, bool& visible) const {
+    const int64_t R = m.resolution;
+    const int64_t lx = tvt_floor_mod(gx, R), ly = tvt_floor_mod(gy, R);
+    const Feature ft = feature_at(m, gx, gy, plain);
+    double d = ft.d;
+    visible = ft.visible;
+    if (visible && ft.p < 1.0) {
+      // Algorithm 1: variation map at the material uv plus a per-feature random offset.
+      const std::span<const uint32_t> meta = s.meta(index_of(m));
+      const uint32_t hv = gpu::tvt_hash_coord(ft.cx, ft.cy, m.variation_salt);
+      const int64_t vx = tvt_floor_mod(lx + int64_t(hv & 0xffffu), R);
+      const int64_t vy = tvt_floor_mod(ly + int64_t(hv >> 16), R);
+      const uint32_t vw = meta[2 * size_t(vy * R + vx) + 1];
+      const double variation = double((vw >> 16) & 0xffu) / 255.0;
+      if (variation < double(m.variation_threshold)) {
+        d = 0.0;  // a chipped hole shows the layer below
+        visible = false;
+        colour = glm::dvec4(glm::dvec3(colour) * double(m.colour_coeff), colour.a);
+      }
+    }
+    const double nf = with_dpt ? non_feature : ft.p;
+    return visible ? std::min(double(m.cm) * std::max(ft.p, ft.f), 1.0) : std::min((1.0 - d) * nf * double(m.cn), 1.0);
+  }
+
   // The statistics block word `i` of material m (TVT_MATERIAL_STATS_WORDS).
   double stat(const gpu::TvtMaterial& m, int i) const {
     return double(std::bit_cast<float>(
@@ -580,10 +608,14 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
     } else {  // FBPB, FBPB+DPT
       double non_feature = 0.0;  // what a non-feature texel blends with: p (FBPB) or DPT's b
       double dpt_h = colour.a;
-      if (mode == gpu::TVT_MODE_FBPB_DPT) c.dpt(m, x_fp, y_fp, footprint, plain, colour.a, non_feature, dpt_h, prefiltered, a_spread);
-      // Prefiltered: features stay exact (coherent per feature) until the fade's end, then
-      // give way to their expectation over one LOD, where they span about a texel.
-      const double fade = prefiltered ? 1.0 - ramp(lod, fbpb_fade_end(m), fbpb_prefiltered_end(m))
+      double dpt_dev = 0.0;  // prefiltered: E[b (A - mean)] of DPT's blend map
+      if (mode == gpu::TVT_MODE_FBPB_DPT)
+        c.dpt(m, x_fp, y_fp, footprint, plain, colour.a, non_feature, dpt_h, prefiltered, a_spread, &dpt_dev);
+      // Prefiltered: features stay exact (coherent per feature), at points of the footprint,
+      // until one LOD past the fade's end, then give way to their expectation over one LOD.
+      // Level 0's own feature fade (what the truth holds; 1 for the default scenes).
+      const double fade0 = prefiltered ? 1.0 - ramp(c.material_lod(m, 1.0), m.fbpb_fade_lo, m.fbpb_fade_hi) : 1.0;
+      const double fade = prefiltered ? (fade0 > 0.0 ? 1.0 - ramp(lod, fbpb_points_end(m), fbpb_prefiltered_end(m)) : 0.0)
                                        : 1.0 - ramp(lod, m.fbpb_fade_lo, m.fbpb_fade_hi);
       double fallback = 0.0;
       if (mode == gpu::TVT_MODE_FBPB_DPT) {
@@ -599,8 +631,8 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
       int64_t gx, gy;
       c.material_coord(m, x_fp, u, gx);
       c.material_coord(m, y_fp, v, gy);
-      const double fade0 = prefiltered && fade < 1.0 ? 1.0 - ramp(c.material_lod(m, 1.0), m.fbpb_fade_lo, m.fbpb_fade_hi) : 0.0;
-      if (fade0 > 0.0) {
+      const double plain_fallback = fallback;
+      if (prefiltered && fade < 1.0 && fade0 > 0.0) {
         // Features smaller than the footprint: their expected w (eq 3.1) over the feature
         // fraction D of the footprint (the chain), each visible with probability min(p Cf, 1),
         // mixed with the level-0 fallback as level 0 mixes them.
@@ -638,29 +670,45 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
       }
       double w = 0.0;
       if (fade > 0.0) {
-        const int64_t R = m.resolution;
-        const int64_t lx = tvt_floor_mod(gx, R), ly = tvt_floor_mod(gy, R);
-        const std::span<const uint32_t> meta = scene.meta(c.index_of(m));
-        const Ctx::Feature ft = c.feature_at(m, gx, gy, plain);
-        double d = ft.d;
-        const double f = ft.f, pw = ft.p;
-        const int64_t cx = ft.cx, cy = ft.cy;
-        visible = ft.visible;
-        if (visible && pw < 1.0) {
-          // Algorithm 1: variation map at the material uv plus a per-feature random offset.
-          const uint32_t hv = gpu::tvt_hash_coord(cx, cy, m.variation_salt);
-          const int64_t vx = tvt_floor_mod(lx + int64_t(hv & 0xffffu), R);
-          const int64_t vy = tvt_floor_mod(ly + int64_t(hv >> 16), R);
-          const uint32_t vw = meta[2 * size_t(vy * R + vx) + 1];
-          const double variation = double((vw >> 16) & 0xffu) / 255.0;
-          if (variation < double(m.variation_threshold)) {
-            d = 0.0;  // a chipped hole shows the layer below
-            visible = false;
-            colour = glm::dvec4(glm::dvec3(colour) * double(m.colour_coeff), colour.a);
-          }
+        // Direct: the feature at the sample. Prefiltered: the mean w over 2 x 2 points of the
+        // footprint, each with the texture over its own quarter of it (one LOD finer), and their
+        // w-weighted colour (docs/composition.md, "FBPB features at points").
+        const bool with_dpt = mode == gpu::TVT_MODE_FBPB_DPT;
+        if (!prefiltered) {
+          w = c.fbpb_exact(m, gx, gy, plain, with_dpt, non_feature, colour, visible);
+        } else {
+          const int64_t quarter = std::llround(std::ldexp(footprint, gpu::TVT_FIXED_BITS - 2));  // fixed point
+          glm::dvec4 weighted(0.0);
+          int shown = 0;
+          // FBPB+DPT: a point's ground texels take DPT's blend map at their own A, which the
+          // footprint's b follows by its covariance with A (dpt_dev, the regression on A's
+          // variance within the footprint: the spread chain's two pieces).
+          const double a_var = a_spread.y * a_spread.y +
+                               (a_spread.x * a_spread.z * a_spread.z + (1.0 - a_spread.x) * a_spread.w * a_spread.w) / 3.0;
+          const double slope = with_dpt && a_var > 1e-5 ? dpt_dev / a_var : 0.0;
+          for (int j = 0; j < 2; ++j)
+            for (int i = 0; i < 2; ++i) {
+              const int64_t px = x_fp + (2 * i - 1) * quarter, py = y_fp + (2 * j - 1) * quarter;
+              glm::dvec4 pc = c.sample_material(m, px, py, lod - 1.0);
+              double unused_u;
+              int64_t pgx, pgy;
+              c.material_coord(m, px, unused_u, pgx);
+              c.material_coord(m, py, unused_u, pgy);
+              bool shows = false;
+              const double ground = clamp01(non_feature + slope * (pc.a - colour.a));
+              const double wi = c.fbpb_exact(m, pgx, pgy, plain, with_dpt, ground, pc, shows);
+              w += wi;
+              weighted += wi * pc;
+              shown += shows ? 1 : 0;
+            }
+          visible = shown >= 2;  // half the points
+          // The points' mean, faded as level 0 fades them, and the colour that makes the blend
+          // below that mean plus the expectation's share.
+          w = fade0 * 0.25 * w + (1.0 - fade0) * plain_fallback;
+          weighted = fade0 * 0.25 * weighted + (1.0 - fade0) * plain_fallback * colour;
+          const double b_mix = fade * w + (1.0 - fade) * fallback;
+          if (b_mix > 0.0) colour = (fade * weighted + (1.0 - fade) * fallback * colour) / b_mix;
         }
-        const double nf = mode == gpu::TVT_MODE_FBPB_DPT ? non_feature : pw;
-        w = visible ? std::min(double(m.cm) * std::max(pw, f), 1.0) : std::min((1.0 - d) * nf * double(m.cn), 1.0);
       }
       b = fade * w + (1.0 - fade) * fallback;
       visible = visible && fade > 0.0;

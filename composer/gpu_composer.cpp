@@ -81,17 +81,19 @@ uint32_t prefiltered_parts(const gpu::TvtComposeParams& p, uint32_t mip) {
         }
       }
     if (m.mode == gpu::TVT_MODE_FBPB || m.mode == gpu::TVT_MODE_FBPB_DPT) {  // compose_sample()'s FBPB branch
-      // The LOD fade of the features: fade = 1 - ramp(lod, end, end + 1), fade0 = 1 - ramp(LOD at
-      // one texel, lo, hi); material_lod() is exactly k + lod_bias at a footprint of 2^k.
-      const float fade_end = std::max(m.fbpb_fade_hi, m.fbpb_fade_lo), fade_top = fade_end + 1.0f;
+      // The LOD fade of the features: fade = 1 - ramp(lod, end + TVT_FEATURE_POINTS_LODS, that + 1),
+      // fade0 = 1 - ramp(LOD at one texel, lo, hi); material_lod() is exactly k + lod_bias at a
+      // footprint of 2^k.
+      const float fade_end = std::max(m.fbpb_fade_hi, m.fbpb_fade_lo) + gpu::TVT_FEATURE_POINTS_LODS,
+                  fade_top = fade_end + 1.0f;
       const bool fade0_positive = ramp_is_below_one(m.lod_bias, m.fbpb_fade_lo, m.fbpb_fade_hi);
       if (exact_ratio) {
         const float lod = float(e - 1) + m.lod_bias;
-        if (ramp_is_below_one(lod, fade_end, fade_top)) parts |= gpu::TVT_PART_FEATURES;  // fade > 0
+        if (ramp_is_below_one(lod, fade_end, fade_top) && fade0_positive) parts |= gpu::TVT_PART_FEATURES;  // fade > 0
         if (ramp_is_positive(lod, fade_end, fade_top) && fade0_positive) parts |= gpu::TVT_PART_FEATURE_EXPECT;
       } else {
         const double lod = std::log2(footprint) + double(m.lod_bias), slack = 1e-3;  // a float log2
-        if (lod - slack < double(fade_top)) parts |= gpu::TVT_PART_FEATURES;
+        if (lod - slack < double(fade_top) && fade0_positive) parts |= gpu::TVT_PART_FEATURES;
         if (lod + slack > double(fade_end) && fade0_positive) parts |= gpu::TVT_PART_FEATURE_EXPECT;
       }
     }

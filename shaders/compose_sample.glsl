@@ -533,6 +533,32 @@ void dpt(int n, int64_t x_fp, int64_t y_fp, float footprint, float plain, float 
   b_out = fade_max * b + (1.0 - fade_max) * plain_b;
 }
 
+// FBPB's w at global material texel (gx, gy): eq 3.1 with Algorithm 1's chipped holes (which
+// darken `colour`, the material there, and show the layer below); `non_feature` is what a
+// non-feature texel blends with under FBPB+DPT (`with_dpt`). reference_compositor.cpp fbpb_exact.
+float fbpb_exact(int n, int64_t gx, int64_t gy, float plain, bool with_dpt, float non_feature, inout vec4 colour,
+                 out bool visible) {
+  const int64_t R = int64_t(P.materials[n].resolution);
+  const int64_t lx = gx & (R - 1), ly = gy & (R - 1);
+  float d, f, pw;
+  int64_t cx, cy;
+  visible = feature_at(n, gx, gy, plain, d, f, pw, cx, cy);
+  if (visible && pw < 1.0) {
+    const uint hv = tvt_hash_coord(cx, cy, P.materials[n].variation_salt);
+    const int64_t vx = (lx + int64_t(hv & 0xffffu)) & (R - 1);
+    const int64_t vy = (ly + int64_t(hv >> 16u)) & (R - 1);
+    const uint vw = meta_texels[2u * (P.materials[n].meta_offset + uint(vy * R + vx)) + 1u];
+    const float variation = float((vw >> 16u) & 0xffu) / 255.0;
+    if (variation < P.materials[n].variation_threshold) {
+      d = 0.0;
+      visible = false;
+      colour.rgb *= P.materials[n].colour_coeff;
+    }
+  }
+  const float nf = with_dpt ? non_feature : pw;
+  return visible ? min(P.materials[n].cm * max(pw, f), 1.0) : min((1.0 - d) * nf * P.materials[n].cn, 1.0);
+}
+
 // `prefiltered`: mips >= 1 of the prefiltered strategy (reference_compositor.cpp).
 vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_mask, bool prefiltered) {
   footprint = (isnan(footprint) || isinf(footprint)) ? 1.0 : max(footprint, 1.0 / 256.0);
@@ -595,13 +621,15 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
     } else if (mode_is(mode, TVT_MODE_FBPB) || mode_is(mode, TVT_MODE_FBPB_DPT)) {
       const float non_feature = dpt_b;
       const float fade_end = max(P.materials[n].fbpb_fade_hi, P.materials[n].fbpb_fade_lo);
-      const float fade = prefiltered ? 1.0 - ramp(lod, fade_end, fade_end + 1.0)
+      // Prefiltered: level 0's own feature fade (what the truth holds; 1 for the default scenes),
+      // and the features exact at points until one LOD past the fade's end, then in expectation.
+      const float fade0 =
+          prefiltered ? 1.0 - ramp(material_lod(n, 1.0), P.materials[n].fbpb_fade_lo, P.materials[n].fbpb_fade_hi) : 1.0;
+      const float fade = prefiltered ? (fade0 > 0.0 ? 1.0 - ramp(lod, fade_end + TVT_FEATURE_POINTS_LODS, fade_end + TVT_FEATURE_POINTS_LODS + 1.0) : 0.0)
                                      : 1.0 - ramp(lod, P.materials[n].fbpb_fade_lo, P.materials[n].fbpb_fade_hi);
-      float fallback = mode_is(mode, TVT_MODE_FBPB_DPT) ? non_feature : plain_b;
-      const float fade0 = prefiltered && fade < 1.0
-                              ? 1.0 - ramp(material_lod(n, 1.0), P.materials[n].fbpb_fade_lo, P.materials[n].fbpb_fade_hi)
-                              : 0.0;
-      if (part(TVT_PART_FEATURE_EXPECT) && fade0 > 0.0) {
+      const float plain_fallback = mode_is(mode, TVT_MODE_FBPB_DPT) ? non_feature : plain_b;
+      float fallback = plain_fallback;
+      if (part(TVT_PART_FEATURE_EXPECT) && prefiltered && fade < 1.0 && fade0 > 0.0) {
         const float nf = mode_is(mode, TVT_MODE_FBPB_DPT) ? non_feature : plain;
         const int64_t mask = int64_t(P.materials[n].resolution - 1);
         vec2 df;
@@ -633,25 +661,50 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
       }
       float w = 0.0;
       if (part(TVT_PART_FEATURES) && fade > 0.0) {
-        const int64_t R = int64_t(P.materials[n].resolution);
-        const int64_t lx = gx & (R - 1), ly = gy & (R - 1);
-        float d, f, pw;
-        int64_t cx, cy;
-        visible = feature_at(n, gx, gy, plain, d, f, pw, cx, cy);
-        if (visible && pw < 1.0) {
-          const uint hv = tvt_hash_coord(cx, cy, P.materials[n].variation_salt);
-          const int64_t vx = (lx + int64_t(hv & 0xffffu)) & (R - 1);
-          const int64_t vy = (ly + int64_t(hv >> 16u)) & (R - 1);
-          const uint vw = meta_texels[2u * (P.materials[n].meta_offset + uint(vy * R + vx)) + 1u];
-          const float variation = float((vw >> 16u) & 0xffu) / 255.0;
-          if (variation < P.materials[n].variation_threshold) {
-            d = 0.0;
-            visible = false;
-            colour.rgb *= P.materials[n].colour_coeff;
+        // Direct: the feature at the sample. Prefiltered: the mean w over 2 x 2 points of the
+        // footprint, each with the texture over its own quarter of it (one LOD finer), and their
+        // w-weighted colour (docs/composition.md, "FBPB features at points").
+        const int kk = prefiltered ? 2 : 1;
+        const int64_t quarter = int64_t(round(ldexp(footprint, TVT_FIXED_BITS - 2)));  // fixed point
+        const bool with_dpt = mode_is(mode, TVT_MODE_FBPB_DPT);
+        vec4 weighted = vec4(0.0);
+        int shown = 0;
+        // FBPB+DPT: a point's ground texels take DPT's blend map at their own A, which the
+        // footprint's b follows by its covariance with A (dpt_dev, the regression on A's
+        // variance within the footprint: the spread chain's two pieces).
+        const float a_var = a_spread.y * a_spread.y +
+                            (a_spread.x * a_spread.z * a_spread.z + (1.0 - a_spread.x) * a_spread.w * a_spread.w) / 3.0;
+        const float slope = prefiltered && with_dpt && a_var > 1e-5 ? dpt_dev / a_var : 0.0;
+        for (int j = 0; j < kk; ++j)
+          for (int i = 0; i < kk; ++i) {
+            vec4 c = colour;
+            int64_t px = gx, py = gy;
+            if (prefiltered) {
+              // Never hex-tiled: pack_scene() leaves FBPB layers above the base untiled, so the
+              // points fetch the tiled texture alone (a device that runs every branch would
+              // otherwise pay hex-tiling's fetches four more times).
+              float pfx, pfy;
+              material_texel_coord(n, x_fp + int64_t(2 * i - 1) * quarter, px, pfx);
+              material_texel_coord(n, y_fp + int64_t(2 * j - 1) * quarter, py, pfy);
+              const int64_t mask = int64_t(P.materials[n].resolution - 1);
+              c = sample_material(n, float(px & mask) + pfx, float(py & mask) + pfy, lod - 1.0);
+            }
+            bool v;
+            const float wi = fbpb_exact(n, px, py, plain, with_dpt, clamp01(non_feature + slope * (c.a - colour.a)), c, v);
+            w += wi;
+            weighted += wi * c;
+            shown += v ? 1 : 0;
+            if (!prefiltered) colour = c;  // darkened in a chipped hole
           }
+        visible = 2 * shown >= kk * kk;  // direct: the sample's feature; prefiltered: half the points
+        if (prefiltered) {
+          // The points' mean, faded as level 0 fades them, and the colour that makes
+          // mix(result, colour, b) that mean plus the expectation's share.
+          w = fade0 * 0.25 * w + (1.0 - fade0) * plain_fallback;
+          weighted = fade0 * 0.25 * weighted + (1.0 - fade0) * plain_fallback * colour;
+          const float b_mix = fade * w + (1.0 - fade) * fallback;
+          if (b_mix > 0.0) colour = (fade * weighted + (1.0 - fade) * fallback * colour) / b_mix;
         }
-        const float nf = mode_is(mode, TVT_MODE_FBPB_DPT) ? non_feature : pw;
-        w = visible ? min(P.materials[n].cm * max(pw, f), 1.0) : min((1.0 - d) * nf * P.materials[n].cn, 1.0);
       }
       b = fade * w + (1.0 - fade) * fallback;
       visible = visible && fade > 0.0;

@@ -301,18 +301,25 @@ TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureFadeWithTheFootprint)
   fbpb.fbpb_fade_lo = 1.0f;
   fbpb.fbpb_fade_hi = 2.0f;
   using namespace gpu;
-  // Footprint 2: 32 texels a patch, exact; features exact (LOD 1 < 2).
+  // Footprint 2: 32 texels a patch, exact; features exact at points (LOD 1 < 2).
   EXPECT_EQ(prefiltered_parts(p, 1), TVT_PART_DPT_POINT | TVT_PART_FEATURES);
-  // LOD 2 and 3 sit on the feature fade's ends (fade 1 and 0): the LOD at a power-of-two
-  // footprint is exactly mip + lod_bias, so only the exact features at LOD 2 and only their
-  // expectation at LOD 3.
   EXPECT_EQ(prefiltered_parts(p, 2), TVT_PART_DPT_POINT | TVT_PART_FEATURES);
-  EXPECT_EQ(prefiltered_parts(p, 3), TVT_PART_DPT_POINT | TVT_PART_FEATURE_EXPECT);
+  // The features stay exact at points until TVT_FEATURE_POINTS_LODS (1) past the fade's end
+  // (LOD 2), then give way to their expectation over one LOD: LOD 3 and 4 sit on that ramp's
+  // ends (fade 1 and 0). The LOD at a power-of-two footprint is exactly mip + lod_bias, so only
+  // the points at LOD 3 and only the expectation at LOD 4.
+  EXPECT_EQ(gpu::TVT_FEATURE_POINTS_LODS, 1.0f);
+  EXPECT_EQ(prefiltered_parts(p, 3), TVT_PART_DPT_POINT | TVT_PART_FEATURES);
   EXPECT_EQ(prefiltered_parts(p, 4), TVT_PART_DPT_POINT | TVT_PART_FEATURE_EXPECT);
   // Two material texels a level-0 texel: the LOD is the mip + 1 (as pack_scene() sets it).
   fbpb.lod_bias = 1.0f;
-  EXPECT_EQ(prefiltered_parts(p, 1), TVT_PART_DPT_POINT | TVT_PART_FEATURES);
-  EXPECT_EQ(prefiltered_parts(p, 2), TVT_PART_DPT_POINT | TVT_PART_FEATURE_EXPECT);
+  EXPECT_EQ(prefiltered_parts(p, 2), TVT_PART_DPT_POINT | TVT_PART_FEATURES);
+  EXPECT_EQ(prefiltered_parts(p, 3), TVT_PART_DPT_POINT | TVT_PART_FEATURE_EXPECT);
+  // Level 0 past the feature fade (its LOD 2 at the fade's end): the truth has no features, so
+  // no prefiltered mip keeps either part.
+  fbpb.lod_bias = 2.0f;
+  EXPECT_EQ(prefiltered_parts(p, 1), TVT_PART_DPT_POINT);
+  EXPECT_EQ(prefiltered_parts(p, 4), TVT_PART_DPT_POINT);
   fbpb.lod_bias = 0.0f;
   // Footprint 32 is on the patch ramp's upper end (2 texels of patch a texel) and 128 on its
   // lower end: the shader's ratio is exact at power-of-two footprints and its ramp is exactly 1

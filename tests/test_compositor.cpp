@@ -691,6 +691,35 @@ TEST(Prefiltered, FeaturesFollowWhatTheFootprintHolds) {
   }
 }
 
+// Where the features are exact at points (mips up to one LOD past the fade's end), each point
+// stands for a quarter of the footprint with the texture one LOD finer. At mip 1 the points
+// are the four level-0 texel centres and the texture is level 0's, so over a uniform base and
+// a constant weight the prefiltered texel is the box filter of level 0 itself: stone edges,
+// chipped holes and each stone's own decision included. At mip 2 it stays close.
+TEST(Prefiltered, FeaturesAtPointsAreTheBoxFilterOfLevel0AtMip1) {
+  const SceneAssets a = big_feature_scene(0.5f);
+  const PackedScene direct = pack(a), pre = pack(a, prefiltered_options());
+  int edges = 0;
+  for (int64_t y = 0; y < 64; ++y)
+    for (int64_t x = 0; x < 64; ++x) {
+      const glm::dvec4 truth = ground_truth_texel(direct, 1, x * 7 + 3, y * 5 + 1);
+      const glm::dvec4 got = compose_texel_reference(pre, 1, x * 7 + 3, y * 5 + 1);
+      for (int c = 0; c < 4; ++c) ASSERT_NEAR(got[c], truth[c], 1e-9) << x << " " << y << " channel " << c;
+      // A texel whose level-0 texels are not all alike (an edge or a hole inside the footprint).
+      const glm::dvec4 centre = compose_texel_reference(direct, 1, x * 7 + 3, y * 5 + 1);
+      edges += std::abs(centre.g - truth.g) > 0.05 ? 1 : 0;
+    }
+  EXPECT_GT(edges, 20);  // the box filter differs from a point sample on many of them
+  double err = 0;
+  for (int64_t y = 0; y < 32; ++y)
+    for (int64_t x = 0; x < 32; ++x) {
+      const glm::dvec4 truth = ground_truth_texel(direct, 2, x * 7 + 1, y * 3 + 2);
+      const glm::dvec4 got = compose_texel_reference(pre, 2, x * 7 + 1, y * 3 + 2);
+      for (int c = 0; c < 3; ++c) err += std::abs(got[c] - truth[c]) / (3 * 32 * 32);
+    }
+  EXPECT_LT(err, 0.01);
+}
+
 TEST(Mips, GroundTruthIsSupersamplingAtTheLevel0Rate) {
   auto a = test::make_synthetic_assets({k_base, {{0, 250, 0, 200}, 0.5f, Mode::Dpt}});
   a.desc.materials[1].dpt.layers = {{6, 1, 1, 1, 0.5}};

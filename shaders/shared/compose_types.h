@@ -100,6 +100,10 @@ TVT_FN uint tvt_meta_chain_offset(uint res, uint level) {
 // else 4), faded to the expectation between TVT_PATCH_SAMPLES_LO and _HI patches a side.
 TVT_CONST float TVT_PATCH_SAMPLES_LO = 4.0;
 TVT_CONST float TVT_PATCH_SAMPLES_HI = 8.0;
+// Prefiltered FBPB: the features stay exact, at 2 x 2 points of the footprint, until this many
+// LODs past the end of the material's feature fade, then give way to their expectation over
+// the next LOD (docs/composition.md, "FBPB features at points").
+TVT_CONST float TVT_FEATURE_POINTS_LODS = 1.0;
 
 TVT_CONST int TVT_COMPOSE_GROUP = 16;  // compute workgroup edge (texels); lavapipe pays ~16 us per group
 
