@@ -411,6 +411,18 @@ void append_material_stats(const MaterialAssets& a, std::vector<uint32_t>& words
     if (feature_texels > 0)
       stats[gpu::TVT_STATS_FEATURE_LOG2_SIZE] = float(0.5 * std::log2(double(feature_texels) / double(a.meta->feature_count)));
   }
+  if (a.meta && !a.meta->texels.empty()) {
+    // The variation map's distribution: the share of texels below each step (exact counts).
+    std::array<size_t, 256> histogram{};
+    for (const MetaTexel& t : a.meta->texels) ++histogram[t.variation];
+    for (int i = 0; i <= gpu::TVT_STATS_VARIATION_STEPS; ++i) {
+      const double level = double(i) / gpu::TVT_STATS_VARIATION_STEPS;  // variation / 255 < level
+      size_t below = 0;
+      for (int v = 0; v < 256; ++v)
+        if (double(v) / 255.0 < level) below += histogram[size_t(v)];
+      stats[size_t(gpu::TVT_STATS_VARIATION_CDF + i)] = float(double(below) / double(a.meta->texels.size()));
+    }
+  }
   for (float f : stats) words.push_back(std::bit_cast<uint32_t>(f));
 }
 

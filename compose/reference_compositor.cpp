@@ -322,6 +322,19 @@ struct Ctx {
     return visible ? std::min(double(m.cm) * std::max(ft.p, ft.f), 1.0) : std::min((1.0 - d) * nf * double(m.cn), 1.0);
   }
 
+  // The share of a visible feature's texels that Algorithm 1 chips: the variation map below the
+  // threshold, interpolated in the statistics block's distribution of it (each feature reads
+  // the map at its own random offset).
+  double chipped_share(const gpu::TvtMaterial& m) const {
+    const double t = m.variation_threshold;
+    if (!(t > 0.0)) return 0.0;
+    if (t > 1.0) return 1.0;
+    const double x = t * gpu::TVT_STATS_VARIATION_STEPS;
+    const int i = std::min(int(std::floor(x)), gpu::TVT_STATS_VARIATION_STEPS - 1);
+    const double lo = stat(m, gpu::TVT_STATS_VARIATION_CDF + i), hi = stat(m, gpu::TVT_STATS_VARIATION_CDF + i + 1);
+    return lo + (hi - lo) * (x - i);
+  }
+
   // The statistics block word `i` of material m (TVT_MATERIAL_STATS_WORDS).
   double stat(const gpu::TvtMaterial& m, int i) const {
     return double(std::bit_cast<float>(
@@ -639,7 +652,16 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
         const double nf = mode == gpu::TVT_MODE_FBPB_DPT ? non_feature : plain;
         const Ctx::FeatureStats local = c.feature_stats(m, u, v, lod);
         // w of a feature texel (visible with probability min(p Cf, 1)) and of a non-feature one.
-        double w_feature = std::min(plain * double(m.cf), 1.0) * std::min(double(m.cm) * std::max(plain, local.soft), 1.0);
+        // A visible feature's texel where its p < 1 is chipped (Algorithm 1) with the share q of
+        // the variation map below the threshold: then it blends as ground (w_chip) in a colour
+        // darkened by colour_coeff. chip_feature: the chipped texels' part of w_feature.
+        const double q = c.chipped_share(m);
+        const double w_chip = std::min(nf * double(m.cn), 1.0);
+        const double q_plain = plain < 1.0 ? q : 0.0;
+        const double visible_p = std::min(plain * double(m.cf), 1.0);
+        double w_feature =
+            visible_p * ((1.0 - q_plain) * std::min(double(m.cm) * std::max(plain, local.soft), 1.0) + q_plain * w_chip);
+        double chip_feature = visible_p * q_plain * w_chip;
         // While few features fall in the footprint, their own decisions: the mean w of the
         // features under k x k points spread over it (k = 1 while a feature spans it, up to 4
         // where 16 do), faded to the expectation as more fall in (docs/composition.md).
@@ -648,21 +670,32 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
         if (e > 0.0) {
           const int k = 1 << std::clamp(int(std::ceil(rel)) + 1, 0, 2);
           const int64_t step = std::max<int64_t>(1, std::llround(std::exp2(lod) / k));
-          double decided = 0.0;
+          double decided = 0.0, chipped = 0.0;
           int hits = 0;
           for (int j = 0; j < k; ++j)
             for (int i = 0; i < k; ++i) {
               const Ctx::Feature ft =
                   c.feature_at(m, gx + (((2 * i + 1 - k) * step) >> 1), gy + (((2 * j + 1 - k) * step) >> 1), plain);
               if (ft.d <= 0.0) continue;
-              decided += ft.visible ? std::min(double(m.cm) * std::max(ft.p, local.soft), 1.0) : 0.0;
+              const double qf = ft.visible && ft.p < 1.0 ? q : 0.0;
+              const double wc = std::min((mode == gpu::TVT_MODE_FBPB_DPT ? non_feature : ft.p) * double(m.cn), 1.0);
+              decided += ft.visible ? (1.0 - qf) * std::min(double(m.cm) * std::max(ft.p, local.soft), 1.0) + qf * wc : 0.0;
+              chipped += qf * wc;
               ++hits;
             }
-          if (hits > 0) w_feature = e * decided / hits + (1.0 - e) * w_feature;
+          if (hits > 0) {
+            w_feature = e * decided / hits + (1.0 - e) * w_feature;
+            chip_feature = e * chipped / hits + (1.0 - e) * chip_feature;
+          }
         }
         const double w_ground = std::min(nf * double(m.cn), 1.0);
         const double expected = local.fraction * w_feature + (1.0 - local.fraction) * w_ground;
         fallback = fade0 * expected + (1.0 - fade0) * fallback;
+        // The chipped texels' share of the fallback shows darkened.
+        const double chip_b = fade0 * local.fraction * chip_feature;
+        if (fallback > 0.0)
+          colour = glm::dvec4(glm::dvec3(colour) * (1.0 - (1.0 - double(m.colour_coeff)) * std::min(chip_b / fallback, 1.0)),
+                              colour.a);
         // E[b colour] - E[b] mean: feature texels (their own mean colour) take w_F, the others
         // w_N, so the shift is (w_F - w_N) times the moment D (feature colour mean - mean).
         feature_shift = (1.0 - fade) * fade0 * (w_feature - w_ground);

@@ -533,6 +533,18 @@ void dpt(int n, int64_t x_fp, int64_t y_fp, float footprint, float plain, float 
   b_out = fade_max * b + (1.0 - fade_max) * plain_b;
 }
 
+// The share of a visible feature's texels that Algorithm 1 chips: the variation map below the
+// threshold, interpolated in the statistics block's distribution of it (each feature reads the
+// map at its own random offset); reference_compositor.cpp chipped_share.
+float chipped_share(int n) {
+  const float t = P.materials[n].variation_threshold;
+  if (!(t > 0.0)) return 0.0;
+  if (t > 1.0) return 1.0;
+  const float x = t * float(TVT_STATS_VARIATION_STEPS);
+  const int i = min(int(floor(x)), TVT_STATS_VARIATION_STEPS - 1);
+  return mix(material_stat(n, TVT_STATS_VARIATION_CDF + i), material_stat(n, TVT_STATS_VARIATION_CDF + i + 1), x - float(i));
+}
+
 // FBPB's w at global material texel (gx, gy): eq 3.1 with Algorithm 1's chipped holes (which
 // darken `colour`, the material there, and show the layer below); `non_feature` is what a
 // non-feature texel blends with under FBPB+DPT (`with_dpt`). reference_compositor.cpp fbpb_exact.
@@ -634,13 +646,21 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
         const int64_t mask = int64_t(P.materials[n].resolution - 1);
         vec2 df;
         feature_stats(n, float(gx & mask) + fx, float(gy & mask) + fy, lod, df, feature_moment);
-        float w_feature = min(plain * P.materials[n].cf, 1.0) * min(P.materials[n].cm * max(plain, df.y), 1.0);
+        // A visible feature's texel where its p < 1 is chipped (Algorithm 1) with the share q of
+        // the variation map below the threshold: then it blends as ground (w_chip) in a colour
+        // darkened by colour_coeff. chip_feature: the chipped texels' part of w_feature.
+        const float q = chipped_share(n);
+        const float w_chip = min(nf * P.materials[n].cn, 1.0);
+        const float q_plain = plain < 1.0 ? q : 0.0;
+        const float visible_p = min(plain * P.materials[n].cf, 1.0);
+        float w_feature = visible_p * mix(min(P.materials[n].cm * max(plain, df.y), 1.0), w_chip, q_plain);
+        float chip_feature = visible_p * q_plain * w_chip;
         const float rel = lod - material_stat(n, TVT_STATS_FEATURE_LOG2_SIZE);
         const float e = 1.0 - ramp(rel, 2.0, 3.0);
         if (e > 0.0) {
           const int k = 1 << clamp(int(ceil(rel)) + 1, 0, 2);
           const int64_t step = int64_t(max(1.0, round(exp2(lod) / float(k))));
-          float decided = 0.0;
+          float decided = 0.0, chipped = 0.0;
           int hits = 0;
           for (int j = 0; j < k; ++j)
             for (int i = 0; i < k; ++i) {
@@ -649,14 +669,23 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
               const bool fvisible = feature_at(n, gx + ((int64_t(2 * i + 1 - k) * step) >> 1),
                                                gy + ((int64_t(2 * j + 1 - k) * step) >> 1), plain, fd, ff, fp, fcx, fcy);
               if (fd <= 0.0) continue;
-              decided += fvisible ? min(P.materials[n].cm * max(fp, df.y), 1.0) : 0.0;
+              const float qf = fvisible && fp < 1.0 ? q : 0.0;
+              const float wc = min((mode_is(mode, TVT_MODE_FBPB_DPT) ? non_feature : fp) * P.materials[n].cn, 1.0);
+              decided += fvisible ? mix(min(P.materials[n].cm * max(fp, df.y), 1.0), wc, qf) : 0.0;
+              chipped += qf * wc;
               ++hits;
             }
-          if (hits > 0) w_feature = e * decided / float(hits) + (1.0 - e) * w_feature;
+          if (hits > 0) {
+            w_feature = e * decided / float(hits) + (1.0 - e) * w_feature;
+            chip_feature = e * chipped / float(hits) + (1.0 - e) * chip_feature;
+          }
         }
         const float w_ground = min(nf * P.materials[n].cn, 1.0);
         const float expected = df.x * w_feature + (1.0 - df.x) * w_ground;
         fallback = fade0 * expected + (1.0 - fade0) * fallback;
+        // The chipped texels' share of the fallback shows darkened.
+        const float chip_b = fade0 * df.x * chip_feature;
+        if (fallback > 0.0) colour.rgb *= 1.0 - (1.0 - P.materials[n].colour_coeff) * min(chip_b / fallback, 1.0);
         feature_shift = (1.0 - fade) * fade0 * (w_feature - w_ground);
       }
       float w = 0.0;

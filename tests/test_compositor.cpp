@@ -691,6 +691,52 @@ TEST(Prefiltered, FeaturesFollowWhatTheFootprintHolds) {
   }
 }
 
+// Algorithm 1's chipped holes in the feature expectation: the statistics block holds the
+// variation map's distribution, and a prefiltered texel past the points takes the chipped share
+// of each visible feature as ground, darkened, as level 0 does texel by texel.
+TEST(Prefiltered, ChippedHolesAreInTheFeatureExpectation) {
+  SceneAssets a = big_feature_scene(0.5f);
+  {
+    MetaTexture& meta = a.materials->edit(1).meta.value();
+    for (int y = 0; y < 64; ++y)
+      for (int x = 0; x < 64; ++x)  // fine-grained noise, as a variation map is
+        meta.texels[size_t(y) * 64 + size_t(x)].variation = uint8_t(gpu::tvt_hash_coord(x, y, 11u) & 0xffu);
+  }
+  const std::shared_ptr<const MaterialAssets> held = a.materials->get(1).value();
+  const MaterialWords words = pack_material(*held);
+  const size_t stats = gpu::tvt_material_stats_offset(64, uint32_t(words.mip_count));
+  for (int i = 0; i <= gpu::TVT_STATS_VARIATION_STEPS; ++i) {
+    size_t below = 0;
+    for (const MetaTexel& t : held->meta->texels) below += double(t.variation) / 255.0 < double(i) / 16.0 ? 1 : 0;
+    EXPECT_FLOAT_EQ(std::bit_cast<float>(words.texels[stats + size_t(gpu::TVT_STATS_VARIATION_CDF + i)]),
+                    float(double(below) / 4096.0)) << i;
+  }
+  // A visible feature shows fully (cm = 4) and its chipped texels not at all (cn = 0), and
+  // the threshold chips 0.6 of them where p < 1 (everywhere here).
+  a.desc.materials[1].fbpb.variation_threshold = 0.6;
+  a.desc.materials[1].fbpb.cm = 4.0;
+  a.desc.materials[1].fbpb.cn = 0.0;
+  SceneAssets unchipped = a;
+  unchipped.desc.materials[1].fbpb.variation_threshold = 0.0;
+  const PackedScene direct = pack(a), pre = pack(a, prefiltered_options()), plain_truth = pack(unchipped);
+  for (const uint32_t mip : {3u, 4u}) {  // past the points (fade ends at LOD 1, points to LOD 2)
+    double err = 0, chipping = 0;
+    const int64_t n = 24, step = (int64_t(1) << (10 - mip)) / n;
+    for (int64_t y = 0; y < n; ++y)
+      for (int64_t x = 0; x < n; ++x) {
+        const glm::dvec4 truth = ground_truth_texel(direct, mip, x * step + 1, y * step + 1);
+        const glm::dvec4 got = compose_texel_reference(pre, mip, x * step + 1, y * step + 1);
+        const glm::dvec4 whole = ground_truth_texel(plain_truth, mip, x * step + 1, y * step + 1);
+        for (int c = 0; c < 3; ++c) {
+          err += std::abs(got[c] - truth[c]) / (3 * n * n);
+          chipping += std::abs(whole[c] - truth[c]) / (3 * n * n);
+        }
+      }
+    EXPECT_GT(chipping, 0.04) << "mip " << mip;  // the holes change the truth
+    EXPECT_LT(err, 0.25 * chipping) << "mip " << mip;  // and the expectation follows them
+  }
+}
+
 // Where the features are exact at points (mips up to one LOD past the fade's end), each point
 // stands for a quarter of the footprint with the texture one LOD finer. At mip 1 the points
 // are the four level-0 texel centres and the texture is level 0's, so over a uniform base and

@@ -76,9 +76,15 @@ TVT_FN uint tvt_material_stats_offset(uint res, uint levels) {
 // four words per level l < 15 (the mean over level-l texels of the variance of A within the
 // level-0 texels under the texel, and of the covariances of A with R, G and B), then log2 of the
 // FBPB features' mean size in material texels (the side of their mean area; 0 without
-// features) (docs/composition.md, "Prefiltered mips").
-TVT_CONST int TVT_MATERIAL_STATS_WORDS = 61;
+// features), then the distribution of the variation map (Algorithm 1): word
+// TVT_STATS_VARIATION_CDF + i is the share of the meta-texture's texels whose variation is
+// below i / TVT_STATS_VARIATION_STEPS, i = 0 .. TVT_STATS_VARIATION_STEPS (zeros without a
+// meta-texture): the share of a visible feature's texels that a threshold chips, since each
+// feature reads the map at its own random offset (docs/composition.md, "Prefiltered mips").
+TVT_CONST int TVT_MATERIAL_STATS_WORDS = 78;
 TVT_CONST int TVT_STATS_FEATURE_LOG2_SIZE = 60;
+TVT_CONST int TVT_STATS_VARIATION_CDF = 61;
+TVT_CONST int TVT_STATS_VARIATION_STEPS = 16;
 
 // A material's meta block (meta_offset, two words a texel): its R x R level-0 meta texels, then
 // its feature statistics chain, levels 1 .. log2 R of (R >> l)^2 texels each, level l's texel
