@@ -113,6 +113,12 @@ void blend_map_of_patches(double settled, double mean, double var, double span, 
 }
 
 // Linear fade: 0 at or below lo, 1 at or above hi (a step at lo when hi <= lo).
+// A's variance within the footprint from its two pieces (p, delta, h_lo, h_hi): the pieces'
+// means' delta^2 and each piece's uniform spread h^2 / 3.
+double spread_variance(const glm::dvec4& spread) {
+  return spread.y * spread.y + (spread.x * spread.z * spread.z + (1.0 - spread.x) * spread.w * spread.w) / 3.0;
+}
+
 double ramp(double v, double lo, double hi) {
   if (hi <= lo) return v >= lo ? 1.0 : 0.0;
   if (v >= hi) return 1.0;  // as the shader: ends decided by comparison
@@ -651,12 +657,23 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
         // mixed with the level-0 fallback as level 0 mixes them.
         const double nf = mode == gpu::TVT_MODE_FBPB_DPT ? non_feature : plain;
         const Ctx::FeatureStats local = c.feature_stats(m, u, v, lod);
+        // FBPB+DPT: ground and chipped texels take DPT's blend value at their own mean A, the
+        // footprint's b moved along its regression on A (as at the points below): the chain's
+        // moment gives the features' mean A, mean + moment.a / D, and the ground's,
+        // mean - moment.a / (1 - D).
+        double nf_ground = nf, nf_chip = nf;
+        const double a_var = spread_variance(a_spread);
+        if (mode == gpu::TVT_MODE_FBPB_DPT && a_var > 1e-5) {
+          const double slope = dpt_dev / a_var;
+          nf_ground = clamp01(non_feature - slope * local.moment.a / std::max(1.0 - local.fraction, 1e-3));
+          nf_chip = clamp01(non_feature + slope * local.moment.a / std::max(local.fraction, 1e-3));
+        }
         // w of a feature texel (visible with probability min(p Cf, 1)) and of a non-feature one.
         // A visible feature's texel where its p < 1 is chipped (Algorithm 1) with the share q of
         // the variation map below the threshold: then it blends as ground (w_chip) in a colour
         // darkened by colour_coeff. chip_feature: the chipped texels' part of w_feature.
         const double q = c.chipped_share(m);
-        const double w_chip = std::min(nf * double(m.cn), 1.0);
+        const double w_chip = std::min(nf_chip * double(m.cn), 1.0);
         const double q_plain = plain < 1.0 ? q : 0.0;
         const double visible_p = std::min(plain * double(m.cf), 1.0);
         double w_feature =
@@ -678,7 +695,7 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
                   c.feature_at(m, gx + (((2 * i + 1 - k) * step) >> 1), gy + (((2 * j + 1 - k) * step) >> 1), plain);
               if (ft.d <= 0.0) continue;
               const double qf = ft.visible && ft.p < 1.0 ? q : 0.0;
-              const double wc = std::min((mode == gpu::TVT_MODE_FBPB_DPT ? non_feature : ft.p) * double(m.cn), 1.0);
+              const double wc = std::min((mode == gpu::TVT_MODE_FBPB_DPT ? nf_chip : ft.p) * double(m.cn), 1.0);
               decided += ft.visible ? (1.0 - qf) * std::min(double(m.cm) * std::max(ft.p, local.soft), 1.0) + qf * wc : 0.0;
               chipped += qf * wc;
               ++hits;
@@ -688,7 +705,7 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
             chip_feature = e * chipped / hits + (1.0 - e) * chip_feature;
           }
         }
-        const double w_ground = std::min(nf * double(m.cn), 1.0);
+        const double w_ground = std::min(nf_ground * double(m.cn), 1.0);
         const double expected = local.fraction * w_feature + (1.0 - local.fraction) * w_ground;
         fallback = fade0 * expected + (1.0 - fade0) * fallback;
         // The chipped texels' share of the fallback shows darkened.
@@ -716,8 +733,7 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
           // FBPB+DPT: a point's ground texels take DPT's blend map at their own A, which the
           // footprint's b follows by its covariance with A (dpt_dev, the regression on A's
           // variance within the footprint: the spread chain's two pieces).
-          const double a_var = a_spread.y * a_spread.y +
-                               (a_spread.x * a_spread.z * a_spread.z + (1.0 - a_spread.x) * a_spread.w * a_spread.w) / 3.0;
+          const double a_var = spread_variance(a_spread);
           const double slope = with_dpt && a_var > 1e-5 ? dpt_dev / a_var : 0.0;
           for (int j = 0; j < 2; ++j)
             for (int i = 0; i < 2; ++i) {

@@ -89,6 +89,12 @@ void blend_map_spread(float b, float a_mean, vec4 spread, float s, out float e, 
   dev = w_lo * (d_lo + e_lo * (lo - a_mean)) + (1.0 - w_lo) * (d_hi + e_hi * (hi - a_mean));
 }
 
+// A's variance within the footprint from its two pieces (p, delta, h_lo, h_hi): the pieces'
+// means' delta^2 and each piece's uniform spread h^2 / 3.
+float spread_variance(vec4 spread) {
+  return spread.y * spread.y + (spread.x * spread.z * spread.z + (1.0 - spread.x) * spread.w * spread.w) / 3.0;
+}
+
 // Bilinear weight at a terrain position, clamped at the terrain edge. The position becomes a
 // float only after clamping, as a fraction of the terrain: its rounding (2^-24 of the terrain,
 // at most 2^-11 of a weight texel for grids up to 8192) is far below what the smooth weight
@@ -646,11 +652,24 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
         const int64_t mask = int64_t(P.materials[n].resolution - 1);
         vec2 df;
         feature_stats(n, float(gx & mask) + fx, float(gy & mask) + fy, lod, df, feature_moment);
+        // FBPB+DPT: ground and chipped texels take DPT's blend value at their own mean A, the
+        // footprint's b moved along its regression on A (as at the points below): the chain's
+        // moment gives the features' mean A, mean + moment.a / D, and the ground's,
+        // mean - moment.a / (1 - D).
+        float nf_ground = nf, nf_chip = nf;
+        {
+          const float a_var = spread_variance(a_spread);
+          if (mode_is(mode, TVT_MODE_FBPB_DPT) && a_var > 1e-5) {
+            const float slope = dpt_dev / a_var;
+            nf_ground = clamp01(non_feature - slope * feature_moment.a / max(1.0 - df.x, 1e-3));
+            nf_chip = clamp01(non_feature + slope * feature_moment.a / max(df.x, 1e-3));
+          }
+        }
         // A visible feature's texel where its p < 1 is chipped (Algorithm 1) with the share q of
         // the variation map below the threshold: then it blends as ground (w_chip) in a colour
         // darkened by colour_coeff. chip_feature: the chipped texels' part of w_feature.
         const float q = chipped_share(n);
-        const float w_chip = min(nf * P.materials[n].cn, 1.0);
+        const float w_chip = min(nf_chip * P.materials[n].cn, 1.0);
         const float q_plain = plain < 1.0 ? q : 0.0;
         const float visible_p = min(plain * P.materials[n].cf, 1.0);
         float w_feature = visible_p * mix(min(P.materials[n].cm * max(plain, df.y), 1.0), w_chip, q_plain);
@@ -670,7 +689,7 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
                                                gy + ((int64_t(2 * j + 1 - k) * step) >> 1), plain, fd, ff, fp, fcx, fcy);
               if (fd <= 0.0) continue;
               const float qf = fvisible && fp < 1.0 ? q : 0.0;
-              const float wc = min((mode_is(mode, TVT_MODE_FBPB_DPT) ? non_feature : fp) * P.materials[n].cn, 1.0);
+              const float wc = min((mode_is(mode, TVT_MODE_FBPB_DPT) ? nf_chip : fp) * P.materials[n].cn, 1.0);
               decided += fvisible ? mix(min(P.materials[n].cm * max(fp, df.y), 1.0), wc, qf) : 0.0;
               chipped += qf * wc;
               ++hits;
@@ -680,7 +699,7 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
             chip_feature = e * chipped / float(hits) + (1.0 - e) * chip_feature;
           }
         }
-        const float w_ground = min(nf * P.materials[n].cn, 1.0);
+        const float w_ground = min(nf_ground * P.materials[n].cn, 1.0);
         const float expected = df.x * w_feature + (1.0 - df.x) * w_ground;
         fallback = fade0 * expected + (1.0 - fade0) * fallback;
         // The chipped texels' share of the fallback shows darkened.
@@ -701,8 +720,7 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
         // FBPB+DPT: a point's ground texels take DPT's blend map at their own A, which the
         // footprint's b follows by its covariance with A (dpt_dev, the regression on A's
         // variance within the footprint: the spread chain's two pieces).
-        const float a_var = a_spread.y * a_spread.y +
-                            (a_spread.x * a_spread.z * a_spread.z + (1.0 - a_spread.x) * a_spread.w * a_spread.w) / 3.0;
+        const float a_var = spread_variance(a_spread);
         const float slope = prefiltered && with_dpt && a_var > 1e-5 ? dpt_dev / a_var : 0.0;
         for (int j = 0; j < kk; ++j)
           for (int i = 0; i < kk; ++i) {
