@@ -93,23 +93,20 @@ MaterialNeeds MaterialCuller::needs(const PageId& page, uint32_t mask) const {
     const gpu::TvtMaterial& m = params_.materials[n];
     // material_lod() in compose_sample.glsl.
     const double lod = std::log2(std::max(footprint, 1.0 / 256.0) * double(m.resolution) * 256.0 / double(m.period_fp));
-    const double level = std::clamp(lod - k_margin, 0.0, double(std::max(m.mip_count - 1, 0)));
     out.mask |= bit;
-    out.finest_level[size_t(n)] = uint8_t(std::floor(level));
     // Direct, the FBPB branch reads the meta-texture while fade = 1 - ramp(lod, lo, hi) > 0.
     // Prefiltered, it reads it (the features at points, then their statistics chain) at every
-    // mip where level 0 has features (fade0 > 0: the level-0 LOD below the fade's end).
-    const bool fbpb = n > 0 && (m.mode == gpu::TVT_MODE_FBPB || m.mode == gpu::TVT_MODE_FBPB_DPT);
+    // mip where level 0 has features (fade0 > 0: the level-0 LOD below the fade's end), and the
+    // features at points read the texture one LOD finer than the footprint.
+    const bool fbpb_meta =
+        n > 0 && (m.mode == gpu::TVT_MODE_FBPB || m.mode == gpu::TVT_MODE_FBPB_DPT) && m.meta_offset != gpu::TVT_NO_META;
     const bool prefiltered = params_.prefiltered != 0 && page.mip > 0;
-    const double fade_end = prefiltered ? fbpb_prefiltered_end(m) : fbpb_fade_end(m);
     const double level0_lod = std::log2(double(m.resolution) * 256.0 / double(m.period_fp));
-    const bool expectation = prefiltered && level0_lod - k_margin < fbpb_fade_end(m);
-    if (fbpb && m.meta_offset != gpu::TVT_NO_META && (prefiltered ? expectation : lod - k_margin < fade_end))
-      out.meta_mask |= bit;
-    // Prefiltered exact features sample the texture at points one LOD finer than the footprint.
-    if (fbpb && prefiltered && expectation && m.meta_offset != gpu::TVT_NO_META && lod - k_margin < fade_end)
-      out.finest_level[size_t(n)] =
-          uint8_t(std::floor(std::clamp(lod - 1.0 - k_margin, 0.0, double(std::max(m.mip_count - 1, 0)))));
+    const bool level0_features = prefiltered && level0_lod - k_margin < fbpb_fade_end(m);
+    const bool points = fbpb_meta && level0_features && lod - k_margin < fbpb_prefiltered_end(m);
+    const double level = std::clamp((points ? lod - 1.0 : lod) - k_margin, 0.0, double(std::max(m.mip_count - 1, 0)));
+    out.finest_level[size_t(n)] = uint8_t(std::floor(level));
+    if (fbpb_meta && (prefiltered ? level0_features : lod - k_margin < fbpb_fade_end(m))) out.meta_mask |= bit;
   }
   return out;
 }

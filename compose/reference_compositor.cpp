@@ -112,13 +112,13 @@ void blend_map_of_patches(double settled, double mean, double var, double span, 
   dev = (1.0 - mu) * d_low + mu * d_high;
 }
 
-// Linear fade: 0 at or below lo, 1 at or above hi (a step at lo when hi <= lo).
 // A's variance within the footprint from its two pieces (p, delta, h_lo, h_hi): the pieces'
 // means' delta^2 and each piece's uniform spread h^2 / 3.
 double spread_variance(const glm::dvec4& spread) {
   return spread.y * spread.y + (spread.x * spread.z * spread.z + (1.0 - spread.x) * spread.w * spread.w) / 3.0;
 }
 
+// Linear fade: 0 at or below lo, 1 at or above hi (a step at lo when hi <= lo).
 double ramp(double v, double lo, double hi) {
   if (hi <= lo) return v >= lo ? 1.0 : 0.0;
   if (v >= hi) return 1.0;  // as the shader: ends decided by comparison
@@ -628,8 +628,14 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
       double non_feature = 0.0;  // what a non-feature texel blends with: p (FBPB) or DPT's b
       double dpt_h = colour.a;
       double dpt_dev = 0.0;  // prefiltered: E[b (A - mean)] of DPT's blend map
-      if (mode == gpu::TVT_MODE_FBPB_DPT)
-        c.dpt(m, x_fp, y_fp, footprint, plain, colour.a, non_feature, dpt_h, prefiltered, a_spread, &dpt_dev);
+      const bool with_dpt = mode == gpu::TVT_MODE_FBPB_DPT;
+      if (with_dpt) c.dpt(m, x_fp, y_fp, footprint, plain, colour.a, non_feature, dpt_h, prefiltered, a_spread, &dpt_dev);
+      // Prefiltered FBPB+DPT: a ground texel takes DPT's blend value at its own A, the
+      // footprint's b moved along its regression on A (dpt_dev over A's variance within the
+      // footprint, the spread chain's two pieces): the gaps between features are the low A that a
+      // blend map shows last. ground_slope * (A_x - mean) is the move for mean A_x.
+      const double a_var = prefiltered && with_dpt ? spread_variance(a_spread) : 0.0;
+      const double ground_slope = a_var > 1e-5 ? dpt_dev / a_var : 0.0;
       // Prefiltered: features stay exact (coherent per feature), at points of the footprint,
       // until one LOD past the fade's end, then give way to their expectation over one LOD.
       // Level 0's own feature fade (what the truth holds; 1 for the default scenes).
@@ -637,7 +643,7 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
       const double fade = prefiltered ? (fade0 > 0.0 ? 1.0 - ramp(lod, fbpb_points_end(m), fbpb_prefiltered_end(m)) : 0.0)
                                        : 1.0 - ramp(lod, m.fbpb_fade_lo, m.fbpb_fade_hi);
       double fallback = 0.0;
-      if (mode == gpu::TVT_MODE_FBPB_DPT) {
+      if (with_dpt) {
         fallback = non_feature;
       } else if (prefiltered) {
         double unused;
@@ -655,19 +661,14 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
         // Features smaller than the footprint: their expected w (eq 3.1) over the feature
         // fraction D of the footprint (the chain), each visible with probability min(p Cf, 1),
         // mixed with the level-0 fallback as level 0 mixes them.
-        const double nf = mode == gpu::TVT_MODE_FBPB_DPT ? non_feature : plain;
+        const double nf = with_dpt ? non_feature : plain;
         const Ctx::FeatureStats local = c.feature_stats(m, u, v, lod);
-        // FBPB+DPT: ground and chipped texels take DPT's blend value at their own mean A, the
-        // footprint's b moved along its regression on A (as at the points below): the chain's
+        // FBPB+DPT: ground and chipped texels at their own mean A (ground_slope): the chain's
         // moment gives the features' mean A, mean + moment.a / D, and the ground's,
         // mean - moment.a / (1 - D).
-        double nf_ground = nf, nf_chip = nf;
-        const double a_var = spread_variance(a_spread);
-        if (mode == gpu::TVT_MODE_FBPB_DPT && a_var > 1e-5) {
-          const double slope = dpt_dev / a_var;
-          nf_ground = clamp01(non_feature - slope * local.moment.a / std::max(1.0 - local.fraction, 1e-3));
-          nf_chip = clamp01(non_feature + slope * local.moment.a / std::max(local.fraction, 1e-3));
-        }
+        const double nf_ground =
+            with_dpt ? clamp01(non_feature - ground_slope * local.moment.a / std::max(1.0 - local.fraction, 1e-3)) : nf;
+        const double nf_chip = with_dpt ? clamp01(non_feature + ground_slope * local.moment.a / std::max(local.fraction, 1e-3)) : nf;
         // w of a feature texel (visible with probability min(p Cf, 1)) and of a non-feature one.
         // A visible feature's texel where its p < 1 is chipped (Algorithm 1) with the share q of
         // the variation map below the threshold: then it blends as ground (w_chip) in a colour
@@ -695,7 +696,7 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
                   c.feature_at(m, gx + (((2 * i + 1 - k) * step) >> 1), gy + (((2 * j + 1 - k) * step) >> 1), plain);
               if (ft.d <= 0.0) continue;
               const double qf = ft.visible && ft.p < 1.0 ? q : 0.0;
-              const double wc = std::min((mode == gpu::TVT_MODE_FBPB_DPT ? nf_chip : ft.p) * double(m.cn), 1.0);
+              const double wc = std::min((with_dpt ? nf_chip : ft.p) * double(m.cn), 1.0);
               decided += ft.visible ? (1.0 - qf) * std::min(double(m.cm) * std::max(ft.p, local.soft), 1.0) + qf * wc : 0.0;
               chipped += qf * wc;
               ++hits;
@@ -723,28 +724,23 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
         // Direct: the feature at the sample. Prefiltered: the mean w over 2 x 2 points of the
         // footprint, each with the texture over its own quarter of it (one LOD finer), and their
         // w-weighted colour (docs/composition.md, "FBPB features at points").
-        const bool with_dpt = mode == gpu::TVT_MODE_FBPB_DPT;
         if (!prefiltered) {
           w = c.fbpb_exact(m, gx, gy, plain, with_dpt, non_feature, colour, visible);
         } else {
           const int64_t quarter = std::llround(std::ldexp(footprint, gpu::TVT_FIXED_BITS - 2));  // fixed point
           glm::dvec4 weighted(0.0);
           int shown = 0;
-          // FBPB+DPT: a point's ground texels take DPT's blend map at their own A, which the
-          // footprint's b follows by its covariance with A (dpt_dev, the regression on A's
-          // variance within the footprint: the spread chain's two pieces).
-          const double a_var = spread_variance(a_spread);
-          const double slope = with_dpt && a_var > 1e-5 ? dpt_dev / a_var : 0.0;
           for (int j = 0; j < 2; ++j)
             for (int i = 0; i < 2; ++i) {
               const int64_t px = x_fp + (2 * i - 1) * quarter, py = y_fp + (2 * j - 1) * quarter;
-              glm::dvec4 pc = c.sample_material(m, px, py, lod - 1.0);
-              double unused_u;
+              // Never hex-tiled (pack_scene() leaves FBPB layers above the base untiled).
+              double pu, pv;
               int64_t pgx, pgy;
-              c.material_coord(m, px, unused_u, pgx);
-              c.material_coord(m, py, unused_u, pgy);
+              c.material_coord(m, px, pu, pgx);
+              c.material_coord(m, py, pv, pgy);
+              glm::dvec4 pc = c.trilinear(m, pu, pv, lod - 1.0);
               bool shows = false;
-              const double ground = clamp01(non_feature + slope * (pc.a - colour.a));
+              const double ground = clamp01(non_feature + ground_slope * (pc.a - colour.a));  // at its own A
               const double wi = c.fbpb_exact(m, pgx, pgy, plain, with_dpt, ground, pc, shows);
               w += wi;
               weighted += wi * pc;
@@ -761,7 +757,7 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
       }
       b = fade * w + (1.0 - fade) * fallback;
       visible = visible && fade > 0.0;
-      if (mode == gpu::TVT_MODE_FBPB_DPT) height = dpt_h;
+      if (with_dpt) height = dpt_h;
     }
     // Precedence (eq 3.2/3.3): a visible lower feature is never covered by non-feature texels.
     const double bn = (visible || !feature_above) ? clamp01(b) : 0.0;

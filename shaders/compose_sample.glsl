@@ -645,26 +645,25 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
           prefiltered ? 1.0 - ramp(material_lod(n, 1.0), P.materials[n].fbpb_fade_lo, P.materials[n].fbpb_fade_hi) : 1.0;
       const float fade = prefiltered ? (fade0 > 0.0 ? 1.0 - ramp(lod, fade_end + TVT_FEATURE_POINTS_LODS, fade_end + TVT_FEATURE_POINTS_LODS + 1.0) : 0.0)
                                      : 1.0 - ramp(lod, P.materials[n].fbpb_fade_lo, P.materials[n].fbpb_fade_hi);
-      const float plain_fallback = mode_is(mode, TVT_MODE_FBPB_DPT) ? non_feature : plain_b;
+      const bool with_dpt = mode_is(mode, TVT_MODE_FBPB_DPT);
+      const float plain_fallback = with_dpt ? non_feature : plain_b;
+      // Prefiltered FBPB+DPT: a ground texel takes DPT's blend value at its own A, the
+      // footprint's b moved along its regression on A (dpt_dev over A's variance within the
+      // footprint, the spread chain's two pieces): the gaps between features are the low A that a
+      // blend map shows last. ground_slope * (A_x - mean) is the move for mean A_x.
+      const float a_var = prefiltered && with_dpt ? spread_variance(a_spread) : 0.0;
+      const float ground_slope = a_var > 1e-5 ? dpt_dev / a_var : 0.0;
       float fallback = plain_fallback;
       if (part(TVT_PART_FEATURE_EXPECT) && prefiltered && fade < 1.0 && fade0 > 0.0) {
-        const float nf = mode_is(mode, TVT_MODE_FBPB_DPT) ? non_feature : plain;
+        const float nf = with_dpt ? non_feature : plain;
         const int64_t mask = int64_t(P.materials[n].resolution - 1);
         vec2 df;
         feature_stats(n, float(gx & mask) + fx, float(gy & mask) + fy, lod, df, feature_moment);
-        // FBPB+DPT: ground and chipped texels take DPT's blend value at their own mean A, the
-        // footprint's b moved along its regression on A (as at the points below): the chain's
+        // FBPB+DPT: ground and chipped texels at their own mean A (ground_slope): the chain's
         // moment gives the features' mean A, mean + moment.a / D, and the ground's,
         // mean - moment.a / (1 - D).
-        float nf_ground = nf, nf_chip = nf;
-        {
-          const float a_var = spread_variance(a_spread);
-          if (mode_is(mode, TVT_MODE_FBPB_DPT) && a_var > 1e-5) {
-            const float slope = dpt_dev / a_var;
-            nf_ground = clamp01(non_feature - slope * feature_moment.a / max(1.0 - df.x, 1e-3));
-            nf_chip = clamp01(non_feature + slope * feature_moment.a / max(df.x, 1e-3));
-          }
-        }
+        const float nf_ground = with_dpt ? clamp01(non_feature - ground_slope * feature_moment.a / max(1.0 - df.x, 1e-3)) : nf;
+        const float nf_chip = with_dpt ? clamp01(non_feature + ground_slope * feature_moment.a / max(df.x, 1e-3)) : nf;
         // A visible feature's texel where its p < 1 is chipped (Algorithm 1) with the share q of
         // the variation map below the threshold: then it blends as ground (w_chip) in a colour
         // darkened by colour_coeff. chip_feature: the chipped texels' part of w_feature.
@@ -689,7 +688,7 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
                                                gy + ((int64_t(2 * j + 1 - k) * step) >> 1), plain, fd, ff, fp, fcx, fcy);
               if (fd <= 0.0) continue;
               const float qf = fvisible && fp < 1.0 ? q : 0.0;
-              const float wc = min((mode_is(mode, TVT_MODE_FBPB_DPT) ? nf_chip : fp) * P.materials[n].cn, 1.0);
+              const float wc = min((with_dpt ? nf_chip : fp) * P.materials[n].cn, 1.0);
               decided += fvisible ? mix(min(P.materials[n].cm * max(fp, df.y), 1.0), wc, qf) : 0.0;
               chipped += qf * wc;
               ++hits;
@@ -714,14 +713,9 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
         // w-weighted colour (docs/composition.md, "FBPB features at points").
         const int kk = prefiltered ? 2 : 1;
         const int64_t quarter = int64_t(round(ldexp(footprint, TVT_FIXED_BITS - 2)));  // fixed point
-        const bool with_dpt = mode_is(mode, TVT_MODE_FBPB_DPT);
+        const int64_t mask = int64_t(P.materials[n].resolution - 1);
         vec4 weighted = vec4(0.0);
         int shown = 0;
-        // FBPB+DPT: a point's ground texels take DPT's blend map at their own A, which the
-        // footprint's b follows by its covariance with A (dpt_dev, the regression on A's
-        // variance within the footprint: the spread chain's two pieces).
-        const float a_var = spread_variance(a_spread);
-        const float slope = prefiltered && with_dpt && a_var > 1e-5 ? dpt_dev / a_var : 0.0;
         for (int j = 0; j < kk; ++j)
           for (int i = 0; i < kk; ++i) {
             vec4 c = colour;
@@ -733,11 +727,10 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
               float pfx, pfy;
               material_texel_coord(n, x_fp + int64_t(2 * i - 1) * quarter, px, pfx);
               material_texel_coord(n, y_fp + int64_t(2 * j - 1) * quarter, py, pfy);
-              const int64_t mask = int64_t(P.materials[n].resolution - 1);
               c = sample_material(n, float(px & mask) + pfx, float(py & mask) + pfy, lod - 1.0);
             }
-            bool v;
-            const float wi = fbpb_exact(n, px, py, plain, with_dpt, clamp01(non_feature + slope * (c.a - colour.a)), c, v);
+            bool v;  // FBPB+DPT: the point's ground at its own A (ground_slope)
+            const float wi = fbpb_exact(n, px, py, plain, with_dpt, clamp01(non_feature + ground_slope * (c.a - colour.a)), c, v);
             w += wi;
             weighted += wi * c;
             shown += v ? 1 : 0;
@@ -755,7 +748,7 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
       }
       b = fade * w + (1.0 - fade) * fallback;
       visible = visible && fade > 0.0;
-      if (mode_is(mode, TVT_MODE_FBPB_DPT)) height = dpt_h;
+      if (with_dpt) height = dpt_h;
     }
     const float bn = (visible || !feature_above) ? clamp01(b) : 0.0;
     feature_above = feature_above || visible;
