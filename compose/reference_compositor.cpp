@@ -532,12 +532,17 @@ struct Ctx {
     const double g = ramp(patches, double(gpu::TVT_PATCH_SAMPLES_LO), double(gpu::TVT_PATCH_SAMPLES_HI));
     if (g >= 1.0) return;
     const int k = patches <= 1.0 ? 2 : 4;
+    const auto offset = [&](int i) { return std::llround(((i + 0.5) / k - 0.5) * footprint * 256.0); };
+    // The shader decides the points' corners once, on a lattice of at most 8 a side: a wider
+    // span (only through rounding at the ramp's end) leaves the layer to its expectation.
+    const auto cells = [&](int64_t c_fp) {
+      return tvt_floor_div(c_fp + offset(k - 1), L.patch_fp) - tvt_floor_div(c_fp + offset(0), L.patch_fp) + 2;
+    };
+    if (cells(x_fp) > 8 || cells(y_fp) > 8) return;
     double s1 = 0.0, s2 = 0.0;
     for (int j = 0; j < k; ++j)
       for (int i = 0; i < k; ++i) {
-        const int64_t dx = std::llround(((i + 0.5) / k - 0.5) * footprint * 256.0);
-        const int64_t dy = std::llround(((j + 0.5) / k - 0.5) * footprint * 256.0);
-        const double v = patch_value(m, L, x_fp + dx, y_fp + dy);
+        const double v = patch_value(m, L, x_fp + offset(i), y_fp + offset(j));
         s1 += v, s2 += v * v;
       }
     s1 /= double(k * k), s2 /= double(k * k);

@@ -424,56 +424,103 @@ void blend_map_of_patches(float settled, float mean, float var, float span, floa
   dev = (1.0 - w_high) * d_low + w_high * d_high;
 }
 
-// One DPT layer's w (eq 4.1-4.3) at a terrain position.
-float patch_value(int n, int k, int64_t x_fp, int64_t y_fp) {
+// The patch cell of DPT layer k of material n that holds a terrain coordinate (one axis): its
+// index and the coordinate's fraction of it.
+void patch_cell(int n, int k, int64_t c_fp, out int64_t i, out float f) {
   const int64_t ps = P.materials[n].dpt[k].patch_fp;
-  int64_t ix, iy;
-  float fx, fy;
-  if (k_compose_small || (abs(x_fp) < int64_t(1 << 30) && abs(y_fp) < int64_t(1 << 30) && ps < int64_t(1 << 30))) {
+  if (k_compose_small || (abs(c_fp) < int64_t(1 << 30) && ps < int64_t(1 << 30))) {
     // Positions within 2^22 texels of the origin (every page of V <= 2^21, and of V = 2^22 but
     // for the expectation's samples beyond its edges): 32-bit divisions, the same quotients.
-    const int ps32 = int(ps), x32 = int(x_fp), y32 = int(y_fp);
-    const int ix32 = tvt_floor_div32(x32, ps32), iy32 = tvt_floor_div32(y32, ps32);
-    fx = float(x32 - ix32 * ps32) / float(ps32);
-    fy = float(y32 - iy32 * ps32) / float(ps32);
-    ix = int64_t(ix32);
-    iy = int64_t(iy32);
+    const int ps32 = int(ps), c32 = int(c_fp);
+    const int i32 = tvt_floor_div32(c32, ps32);
+    f = float(c32 - i32 * ps32) / float(ps32);
+    i = int64_t(i32);
   } else {
-    ix = tvt_floor_div(x_fp, ps);
-    iy = tvt_floor_div(y_fp, ps);
-    fx = float(x_fp - ix * ps) / float(ps);
-    fy = float(y_fp - iy * ps) / float(ps);
+    i = tvt_floor_div(c_fp, ps);
+    f = float(c_fp - i * ps) / float(ps);
   }
-  // m_j = p_j > 0 && r_j^R <= p_j^P (eq 4.1, 4.2), compared in the log domain: two log2
-  // instead of two pow; r is never 0, and p = 0 fails the first test.
-  const int layer_w = P.materials[n].weight_layer;
-  const float ep = P.materials[n].dpt[k].exp_p, er = P.materials[n].dpt[k].exp_r;
-  const uint salt = P.materials[n].dpt[k].salt;
+}
+
+// Corner (jx, jy)'s patch mask m_j = p_j > 0 && r_j^R <= p_j^P (eq 4.1, 4.2), compared in the
+// log domain: two log2 instead of two pow; r is never 0, and p = 0 fails the first test.
+float patch_corner(int n, int k, int64_t jx, int64_t jy) {
+  const int64_t ps = P.materials[n].dpt[k].patch_fp;
   const int64_t half_patch = ps / 2;
-  float m[4];
-  for (int c = 0; c < 4; ++c) {
-    const int64_t jx = ix + int64_t(c & 1), jy = iy + int64_t(c >> 1);
-    const float w = weight_at(layer_w, jx * ps + half_patch, jy * ps + half_patch);
-    const float r = tvt_rand01(tvt_hash_coord(jx, jy, salt));
-    m[c] = (w > 0.0 && er * log2(r) <= ep * log2(w)) ? 1.0 : 0.0;
-  }
-  const float bl = mix(mix(m[0], m[1], fx), mix(m[2], m[3], fx), fy);
-  return safe_pow(bl, P.materials[n].dpt[k].exp_w);
+  const float w = weight_at(P.materials[n].weight_layer, jx * ps + half_patch, jy * ps + half_patch);
+  const float r = tvt_rand01(tvt_hash_coord(jx, jy, P.materials[n].dpt[k].salt));
+  return w > 0.0 && P.materials[n].dpt[k].exp_r * log2(r) <= P.materials[n].dpt[k].exp_p * log2(w) ? 1.0 : 0.0;
+}
+
+// The layer's w from its cell's four corner masks (0 or 1) and the position's fractions (eq
+// 4.3); W = 1 (the default) is the bilinear value itself, which pow() need not round.
+float patch_blend(int n, int k, float m00, float m10, float m01, float m11, float fx, float fy) {
+  const float bl = mix(mix(m00, m10, fx), mix(m01, m11, fx), fy);
+  const float w = P.materials[n].dpt[k].exp_w;
+  return w == 1.0 ? bl : safe_pow(bl, w);
+}
+
+// One DPT layer's w (eq 4.1-4.3) at a terrain position.
+float patch_value(int n, int k, int64_t x_fp, int64_t y_fp) {
+  int64_t ix, iy;
+  float fx, fy;
+  patch_cell(n, k, x_fp, ix, fx);
+  patch_cell(n, k, y_fp, iy, fy);
+  return patch_blend(n, k, patch_corner(n, k, ix, iy), patch_corner(n, k, ix + 1, iy), patch_corner(n, k, ix, iy + 1),
+                     patch_corner(n, k, ix + 1, iy + 1), fx, fy);
 }
 
 // Prefiltered DPT: the layer's actual values at k x k points over the footprint while its
-// patches are few there (reference_compositor.cpp patch_samples).
+// patches are few there (reference_compositor.cpp patch_samples). The points share corners,
+// so each corner's mask is decided once and every point reads its four: the same masks and
+// fractions as patch_value() at each point.
 void patch_samples(int n, int k, int64_t x_fp, int64_t y_fp, float footprint, inout float mean, inout float second) {
   const float patches = footprint / max(P.materials[n].dpt[k].patch_texels, 1e-6);
   const float g = ramp(patches, TVT_PATCH_SAMPLES_LO, TVT_PATCH_SAMPLES_HI);
   if (g >= 1.0) return;
   const int kk = patches <= 1.0 ? 2 : 4;
+  // The points' cells on each axis from the footprint centre's by its remainder: fewer than
+  // TVT_PATCH_SAMPLES_HI patches a side put every point within 4 cells of it, so a float
+  // estimate of the quotient is off by at most one and an exact integer step settles it (a
+  // division per axis instead of per point: the same cells and fractions as patch_cell()).
+  const int64_t ps = P.materials[n].dpt[k].patch_fp;
+  const float inv_ps = 1.0 / float(ps);
+  int64_t cx, cy;
+  float fcx, fcy;
+  patch_cell(n, k, x_fp, cx, fcx);
+  patch_cell(n, k, y_fp, cy, fcy);
+  const int64_t rcx = x_fp - cx * ps, rcy = y_fp - cy * ps;
+  int qx[4], qy[4];
+  float fx[4], fy[4];
+  for (int i = 0; i < kk; ++i) {
+    const float d = round(((float(i) + 0.5) / float(kk) - 0.5) * footprint * 256.0);
+    const int64_t di = int64_t(d);
+    int q = int(floor(fcx + d * inv_ps));
+    int64_t r = rcx + di - int64_t(q) * ps;
+    if (r < 0) { --q; r += ps; } else if (r >= ps) { ++q; r -= ps; }
+    qx[i] = q;
+    fx[i] = float(int(r)) / float(ps);
+    q = int(floor(fcy + d * inv_ps));
+    r = rcy + di - int64_t(q) * ps;
+    if (r < 0) { --q; r += ps; } else if (r >= ps) { ++q; r -= ps; }
+    qy[i] = q;
+    fy[i] = float(int(r)) / float(ps);
+  }
+  // Each corner's mask decided once, into a bit of an 8 x 8 lattice from the first point's
+  // cell: below TVT_PATCH_SAMPLES_HI patches a side the points span at most 7 cells. A wider
+  // span (the ramp's end, met only through rounding) leaves the layer to its expectation, as
+  // the reference does.
+  const int nx = qx[kk - 1] - qx[0] + 2, ny = qy[kk - 1] - qy[0] + 2;
+  if (nx > 8 || ny > 8) return;
+  uint64_t bits = 0ul;
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i)
+      if (patch_corner(n, k, cx + int64_t(qx[0] + i), cy + int64_t(qy[0] + j)) > 0.0) bits |= uint64_t(1) << uint(j * 8 + i);
   float s1 = 0.0, s2 = 0.0;
   for (int j = 0; j < kk; ++j)
     for (int i = 0; i < kk; ++i) {
-      const int64_t dx = int64_t(round(((float(i) + 0.5) / float(kk) - 0.5) * footprint * 256.0));
-      const int64_t dy = int64_t(round(((float(j) + 0.5) / float(kk) - 0.5) * footprint * 256.0));
-      const float v = patch_value(n, k, x_fp + dx, y_fp + dy);
+      const uint at = uint(qy[j] - qy[0]) * 8u + uint(qx[i] - qx[0]);
+      const float v = patch_blend(n, k, float(uint(bits >> at) & 1u), float(uint(bits >> (at + 1u)) & 1u),
+                        float(uint(bits >> (at + 8u)) & 1u), float(uint(bits >> (at + 9u)) & 1u), fx[i], fy[j]);
       s1 += v;
       s2 += v * v;
     }

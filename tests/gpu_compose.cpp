@@ -204,6 +204,31 @@ TEST_F(GpuCompose, PrefilteredMipsMatchReferenceForEveryMethod) {
                      "prefiltered far corner " + std::string(to_string(m)));
 }
 
+// DPT's samples (1 to 8 patches a side of a footprint): the shader decides the points' corner
+// masks once on a lattice and finds their cells from the footprint centre's; patch sizes that
+// are no power of two, W != 1 (pow) and positions past 2^32 fixed-point units (the 64-bit cells)
+// give the reference's values.
+TEST_F(GpuCompose, PrefilteredPatchSamplesMatchReferenceAtOddPatchSizes) {
+  for (const uint32_t log2_vt : {16u, 24u}) {
+    SceneDesc d = default_scene();
+    d.vt.log2_size = log2_vt;
+    const double scale = log2_vt == 16 ? 1.0 : 777.0;  // patches of 4.6k and 29k texels at 2^24
+    for (MaterialDesc& m : d.materials)
+      m.dpt.layers = {DptLayerDesc{37.3 * scale, 0.8, 1.3, 1.7, 0.5}, DptLayerDesc{5.9 * scale, 1.0, 1.0, 1.0, 0.3}};
+    auto assets = load_scene_assets(d);
+    ASSERT_TRUE(assets.ok()) << assets.error().message;
+    std::vector<PageId> pages;
+    const uint32_t shift = log2_vt == 16 ? 0 : 9;  // 777 ~ 2^9.6: the same patches a footprint
+    for (uint32_t mip = 3; mip <= 8; ++mip) {
+      const uint32_t last = uint32_t(d.vt.pages_per_side(mip + shift) - 1);
+      pages.push_back(PageId{mip + shift, last / 2, last / 3});
+      if (log2_vt == 24) pages.push_back(PageId{mip + shift, last, last});
+    }
+    expect_agreement(assets.value(), options_for(Method::Dpt2, MipStrategy{1, true}), pages,
+                     "patch samples, V = 2^" + std::to_string(log2_vt));
+  }
+}
+
 // The pipelines specialised to the scene's modes, hex-tiling and each mip's parts of the
 // prefiltered maths (TVT_COMPOSE_SPEC_*) leave out only what cannot run: every byte as the one
 // pipeline that keeps every path, for every method, strategy and mip, in one mixed batch.
