@@ -1,11 +1,17 @@
 #include "compose/material_culling.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 
 namespace tvt {
 
 MaterialCuller::MaterialCuller(const PackedScene& s) {
+  // The materials' words, for their statistics (not the weights, which the tables below hold).
+  scene_.params = s.params;
+  scene_.texel_words = s.texel_words;
+  scene_.meta_words = s.meta_words;
+  scene_.cache_ = s.cache_;
   const gpu::TvtComposeParams& p = s.params;
   width_ = p.weight_width;
   height_ = p.weight_height;
@@ -97,14 +103,25 @@ MaterialNeeds MaterialCuller::needs(const PageId& page, uint32_t mask) const {
     // Direct, the FBPB branch reads the meta-texture while fade = 1 - ramp(lod, lo, hi) > 0.
     // Prefiltered, it reads it (the features at points, then their statistics chain) at every
     // mip where level 0 has features (fade0 > 0: the level-0 LOD below the fade's end), and the
-    // features at points read the texture one LOD finer than the footprint.
+    // features at points read the texture log2 k LODs finer than the footprint, k from
+    // tvt_feature_points() and the feature size in the material's statistics block: the
+    // material is loaded here (the upload of what this returns loads it anyway); one that fails
+    // to load is taken at k = 4, and its upload reports the error.
     const bool fbpb_meta =
         n > 0 && (m.mode == gpu::TVT_MODE_FBPB || m.mode == gpu::TVT_MODE_FBPB_DPT) && m.meta_offset != gpu::TVT_NO_META;
     const bool prefiltered = params_.prefiltered != 0 && page.mip > 0;
     const double level0_lod = std::log2(double(m.resolution) * 256.0 / double(m.period_fp));
     const bool level0_features = prefiltered && level0_lod - k_margin < fbpb_fade_end(m);
     const bool points = fbpb_meta && level0_features && lod - k_margin < fbpb_prefiltered_end(m);
-    const double level = std::clamp((points ? lod - 1.0 : lod) - k_margin, 0.0, double(std::max(m.mip_count - 1, 0)));
+    double finer = points ? 1.0 : 0.0;
+    if (points && lod + k_margin >= 2.0) {
+      const bool loaded = bool(scene_.load(bit));
+      const double feature_log2_size = loaded ? double(std::bit_cast<float>(scene_.texels(size_t(n))[
+          gpu::tvt_material_stats_offset(uint32_t(m.resolution), uint32_t(m.mip_count)) + gpu::TVT_STATS_FEATURE_LOG2_SIZE]))
+                                              : 0.0;
+      if (!loaded || lod + k_margin > feature_log2_size - 1.0) finer = 2.0;
+    }
+    const double level = std::clamp(lod - finer - k_margin, 0.0, double(std::max(m.mip_count - 1, 0)));
     out.finest_level[size_t(n)] = uint8_t(std::floor(level));
     if (fbpb_meta && (prefiltered ? level0_features : lod - k_margin < fbpb_fade_end(m))) out.meta_mask |= bit;
   }

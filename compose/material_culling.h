@@ -60,6 +60,7 @@ class MaterialCuller {
   std::vector<int64_t> reach_texels_;  // per material
   std::vector<int> layer_of_;          // weight layer per material
   std::vector<uint32_t> nonzero_sat_;  // per layer summed-area table of (weight > 0), (W+1)*(H+1)
+  PackedScene scene_;                  // the scene's materials (shared cache), without its weights
 };
 
 }  // namespace tvt

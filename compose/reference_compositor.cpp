@@ -726,24 +726,26 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
       }
       double w = 0.0;
       if (fade > 0.0) {
-        // Direct: the feature at the sample. Prefiltered: the mean w over 2 x 2 points of the
-        // footprint, each with the texture over its own quarter of it (one LOD finer), and their
-        // w-weighted colour (docs/composition.md, "FBPB features at points").
+        // Direct: the feature at the sample. Prefiltered: the mean w over k x k points of the
+        // footprint (tvt_feature_points), each with the texture over its own part of it (log2 k
+        // LODs finer), and their w-weighted colour (docs/composition.md, "FBPB features at points").
         if (!prefiltered) {
           w = c.fbpb_exact(m, gx, gy, plain, with_dpt, non_feature, colour, visible);
         } else {
-          const int64_t quarter = std::llround(std::ldexp(footprint, gpu::TVT_FIXED_BITS - 2));  // fixed point
+          const int k = gpu::tvt_feature_points(float(lod), float(c.stat(m, gpu::TVT_STATS_FEATURE_LOG2_SIZE)));
+          // Half the points' spacing, footprint / 2k, in fixed point; the points at odd multiples of it.
+          const int64_t half_step = std::llround(std::ldexp(footprint, gpu::TVT_FIXED_BITS - (k == 4 ? 3 : 2)));
           glm::dvec4 weighted(0.0);
           int shown = 0;
-          for (int j = 0; j < 2; ++j)
-            for (int i = 0; i < 2; ++i) {
-              const int64_t px = x_fp + (2 * i - 1) * quarter, py = y_fp + (2 * j - 1) * quarter;
+          for (int j = 0; j < k; ++j)
+            for (int i = 0; i < k; ++i) {
+              const int64_t px = x_fp + (2 * i + 1 - k) * half_step, py = y_fp + (2 * j + 1 - k) * half_step;
               // Never hex-tiled (pack_scene() leaves FBPB layers above the base untiled).
               double pu, pv;
               int64_t pgx, pgy;
               c.material_coord(m, px, pu, pgx);
               c.material_coord(m, py, pv, pgy);
-              glm::dvec4 pc = c.trilinear(m, pu, pv, lod - 1.0);
+              glm::dvec4 pc = c.trilinear(m, pu, pv, lod - (k == 4 ? 2.0 : 1.0));
               bool shows = false;
               const double ground = clamp01(non_feature + ground_slope * (pc.a - colour.a));  // at its own A
               const double wi = c.fbpb_exact(m, pgx, pgy, plain, with_dpt, ground, pc, shows);
@@ -751,11 +753,12 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
               weighted += wi * pc;
               shown += shows ? 1 : 0;
             }
-          visible = shown >= 2;  // half the points
+          visible = 2 * shown >= k * k;  // half the points
           // The points' mean, faded as level 0 fades them, and the colour that makes the blend
           // below that mean plus the expectation's share.
-          w = fade0 * 0.25 * w + (1.0 - fade0) * plain_fallback;
-          weighted = fade0 * 0.25 * weighted + (1.0 - fade0) * plain_fallback * colour;
+          const double per_point = 1.0 / double(k * k);
+          w = fade0 * per_point * w + (1.0 - fade0) * plain_fallback;
+          weighted = fade0 * per_point * weighted + (1.0 - fade0) * plain_fallback * colour;
           const double b_mix = fade * w + (1.0 - fade) * fallback;
           if (b_mix > 0.0) colour = (fade * weighted + (1.0 - fade) * fallback * colour) / b_mix;
         }

@@ -190,6 +190,31 @@ void material_texel_coord(int n, int64_t pos_fp, out int64_t global_, out float 
   frac_ = float(num - global_ * period) / float(period);
 }
 
+// material_texel_coord() of pos_fp + delta_fp from pos_fp's global texel g and its remainder
+// rem = pos_fp * R - g * period: while delta spans fewer than 2^20 texels (`near`, a property of
+// the footprint alone) a float estimate of the extra quotient is off by at most one and an
+// integer step settles it, instead of a 64-bit division; the same texel and fraction.
+void material_texel_near(int n, int64_t pos_fp, int64_t g, int64_t rem, float frac, int64_t delta_fp, bool near,
+                         out int64_t global_, out float frac_) {
+  if (!near) {
+    material_texel_coord(n, pos_fp + delta_fp, global_, frac_);
+    return;
+  }
+  const int64_t period = P.materials[n].period_fp;
+  const int64_t d = delta_fp * int64_t(P.materials[n].resolution);
+  int q = int(floor(frac + float(delta_fp) * (float(P.materials[n].resolution) / float(period))));
+  int64_t r = rem + d - int64_t(q) * period;
+  if (r < 0) {
+    --q;
+    r += period;
+  } else if (r >= period) {
+    ++q;
+    r -= period;
+  }
+  global_ = g + int64_t(q);
+  frac_ = float(r) / float(period);
+}
+
 // The material's LOD at a footprint of `footprint` level-0 texels: log2(footprint) + lod_bias,
 // exactly k + lod_bias at a power-of-two footprint 2^k (every one compose.comp passes), which
 // the host evaluates as the same float (prefiltered_parts()).
@@ -755,12 +780,17 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
       }
       float w = 0.0;
       if (part(TVT_PART_FEATURES) && fade > 0.0) {
-        // Direct: the feature at the sample. Prefiltered: the mean w over 2 x 2 points of the
-        // footprint, each with the texture over its own quarter of it (one LOD finer), and their
+        // Direct: the feature at the sample. Prefiltered: the mean w over k x k points of the
+        // footprint, each with the texture over its own part of it (log2 k LODs finer), and their
         // w-weighted colour (docs/composition.md, "FBPB features at points").
-        const int kk = prefiltered ? 2 : 1;
-        const int64_t quarter = int64_t(round(ldexp(footprint, TVT_FIXED_BITS - 2)));  // fixed point
+        const int kk = prefiltered ? tvt_feature_points(lod, material_stat(n, TVT_STATS_FEATURE_LOG2_SIZE)) : 1;
+        const float point_lod = lod - (kk == 4 ? 2.0 : 1.0);
+        // Half the points' spacing, footprint / 2k, in fixed point; the points at odd multiples of it.
+        const int64_t half_step = int64_t(round(ldexp(footprint, TVT_FIXED_BITS - (kk == 4 ? 3 : 2))));
+        const bool near = footprint * float(P.materials[n].resolution) * 256.0 < float(P.materials[n].period_fp) * 1048576.0;
         const int64_t mask = int64_t(P.materials[n].resolution - 1);
+        const int64_t rx = x_fp * int64_t(P.materials[n].resolution) - gx * P.materials[n].period_fp;
+        const int64_t ry = y_fp * int64_t(P.materials[n].resolution) - gy * P.materials[n].period_fp;
         vec4 weighted = vec4(0.0);
         int shown = 0;
         for (int j = 0; j < kk; ++j)
@@ -770,11 +800,11 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
             if (prefiltered) {
               // Never hex-tiled: pack_scene() leaves FBPB layers above the base untiled, so the
               // points fetch the tiled texture alone (a device that runs every branch would
-              // otherwise pay hex-tiling's fetches four more times).
+              // otherwise pay hex-tiling's fetches again at each point).
               float pfx, pfy;
-              material_texel_coord(n, x_fp + int64_t(2 * i - 1) * quarter, px, pfx);
-              material_texel_coord(n, y_fp + int64_t(2 * j - 1) * quarter, py, pfy);
-              c = sample_material(n, float(px & mask) + pfx, float(py & mask) + pfy, lod - 1.0);
+              material_texel_near(n, x_fp, gx, rx, fx, int64_t(2 * i + 1 - kk) * half_step, near, px, pfx);
+              material_texel_near(n, y_fp, gy, ry, fy, int64_t(2 * j + 1 - kk) * half_step, near, py, pfy);
+              c = sample_material(n, float(px & mask) + pfx, float(py & mask) + pfy, point_lod);
             }
             bool v;  // FBPB+DPT: the point's ground at its own A (ground_slope)
             const float wi = fbpb_exact(n, px, py, plain, with_dpt, clamp01(non_feature + ground_slope * (c.a - colour.a)), c, v);
@@ -787,8 +817,9 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
         if (prefiltered) {
           // The points' mean, faded as level 0 fades them, and the colour that makes
           // mix(result, colour, b) that mean plus the expectation's share.
-          w = fade0 * 0.25 * w + (1.0 - fade0) * plain_fallback;
-          weighted = fade0 * 0.25 * weighted + (1.0 - fade0) * plain_fallback * colour;
+          const float per_point = 1.0 / float(kk * kk);
+          w = fade0 * per_point * w + (1.0 - fade0) * plain_fallback;
+          weighted = fade0 * per_point * weighted + (1.0 - fade0) * plain_fallback * colour;
           const float b_mix = fade * w + (1.0 - fade) * fallback;
           if (b_mix > 0.0) colour = (fade * weighted + (1.0 - fade) * fallback * colour) / b_mix;
         }

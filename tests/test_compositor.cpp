@@ -766,6 +766,47 @@ TEST(Prefiltered, FeaturesAtPointsAreTheBoxFilterOfLevel0AtMip1) {
   EXPECT_LT(err, 0.01);
 }
 
+// Features smaller than the footprint: 4 x 4 points (tvt_feature_points: the material LOD above
+// the log2 feature size less 1, and at least 2). At mip 2 they are the sixteen level-0 texel
+// centres with level 0's texture, so the prefiltered texel is again the box filter of level 0,
+// every small stone's own decision included; with 2 x 2 points it would not be.
+TEST(Prefiltered, SmallFeaturesTakeFourByFourPointsExactAtMip2) {
+  auto a = test::make_synthetic_assets({k_base, {{0, 40, 200, 128}, 0.5f, Mode::Fbpb, 64}});
+  MetaTexture meta;
+  meta.resolution = 64;
+  meta.texels.resize(64 * 64);
+  ImageRGBA8 albedo(64, 64);
+  for (int y = 0; y < 64; ++y)
+    for (int x = 0; x < 64; ++x) {  // a stone of 5 x 5 texels in every 8 x 8 cell
+      const int dx = 4 - x % 8, dy = 4 - y % 8;
+      MetaTexel& t = meta.texels[size_t(y) * 64 + size_t(x)];
+      t.variation = 255;
+      const bool stone = std::abs(dx) <= 2 && std::abs(dy) <= 2;
+      if (stone) t.d = 1, t.f = 200, t.dx = int16_t(dx), t.dy = int16_t(dy);
+      uint8_t* c = albedo.at(x, y);
+      c[0] = 0, c[1] = stone ? 200 : 40, c[2] = stone ? 0 : 200, c[3] = 128;
+    }
+  meta.feature_count = 64;
+  a.materials->edit(1).albedo = build_mip_chain(albedo);
+  a.materials->edit(1).meta = std::move(meta);
+  a.desc.materials[1].has_fbpb = true;
+  a.desc.materials[1].fbpb.fade_lod_lo = 0.0;  // points until LOD 2
+  a.desc.materials[1].fbpb.fade_lod_hi = 1.0;
+  const PackedScene direct = pack(a), pre = pack(a, prefiltered_options());
+  EXPECT_EQ(gpu::tvt_feature_points(2.0f, float(0.5 * std::log2(25.0))), 4);
+  EXPECT_EQ(gpu::tvt_feature_points(1.0f, float(0.5 * std::log2(25.0))), 2);  // below 4 material texels
+  int edges = 0;
+  for (int64_t y = 0; y < 48; ++y)
+    for (int64_t x = 0; x < 48; ++x) {
+      const glm::dvec4 truth = ground_truth_texel(direct, 2, x * 5 + 3, y * 3 + 1);
+      const glm::dvec4 got = compose_texel_reference(pre, 2, x * 5 + 3, y * 3 + 1);
+      for (int c = 0; c < 4; ++c) ASSERT_NEAR(got[c], truth[c], 1e-9) << x << " " << y << " channel " << c;
+      const glm::dvec4 centre = compose_texel_reference(direct, 2, x * 5 + 3, y * 3 + 1);
+      edges += std::abs(centre.g - truth.g) > 0.05 ? 1 : 0;
+    }
+  EXPECT_GT(edges, 100);  // stone edges and stones of their own decision inside most footprints
+}
+
 TEST(Mips, GroundTruthIsSupersamplingAtTheLevel0Rate) {
   auto a = test::make_synthetic_assets({k_base, {{0, 250, 0, 200}, 0.5f, Mode::Dpt}});
   a.desc.materials[1].dpt.layers = {{6, 1, 1, 1, 0.5}};

@@ -12,13 +12,13 @@ namespace {
 
 // Material 1: 16x16 texture (5 levels) repeating every `period` level-0 texels, FBPB features.
 PackedScene scene(double period, uint32_t supersample = 1, std::optional<Mode> method = std::nullopt,
-                  bool prefiltered = false) {
+                  bool prefiltered = false, int feature_side = 5) {
   test::SyntheticMaterial base{{100, 0, 0, 100}, 0.f, Mode::BlendMap};
   test::SyntheticMaterial top{{0, 200, 0, 100}, 0.5f, Mode::Fbpb};
   auto a = test::make_synthetic_assets({base, top}, 12);
   a.desc.materials[1].period_texels = period;
   a.desc.materials[1].has_fbpb = true;
-  a.materials->edit(1).meta = test::square_feature_meta(16, 8, 8, 4);
+  a.materials->edit(1).meta = test::square_feature_meta(16, 8, 8, feature_side - 1);
   ComposeOptions o;
   o.supersample = supersample;
   o.method = method;
@@ -69,6 +69,19 @@ TEST(LazyNeeds, PrefilteredFbpbReadsTheMetaBlockAtEveryMipWhereLevel0HasFeatures
   // Level-0 lod 5 (R / T = 32): features faded out at every level, the meta block is never read.
   const PackedScene faded = scene(0.5, 1, std::nullopt, true);
   for (uint32_t mip = 1; mip < 12; ++mip) EXPECT_EQ(MaterialCuller(faded).needs(PageId{mip, 0, 0}, 3u).meta_mask, 0u) << mip;
+}
+
+// Prefiltered FBPB features at k x k points read the texture log2 k LODs finer: k = 4 where the
+// LOD is above the log2 feature size less 1 (tvt_feature_points), from the material's statistics.
+TEST(LazyNeeds, PrefilteredFeaturePointsReadOneOrTwoLodsFiner) {
+  // R / T = 1/3: lod = mip - 1.585; mip 4 is lod 2.415, within the points (to lod 5).
+  const PackedScene small = scene(48.0, 1, std::nullopt, true, 5);  // log2 5 - 1 = 1.32: k = 4
+  EXPECT_EQ(int(MaterialCuller(small).needs(PageId{4, 0, 0}, 3u).finest_level[1]), 0);
+  const PackedScene big = scene(48.0, 1, std::nullopt, true, 11);  // log2 11 - 1 = 2.46: k = 2
+  EXPECT_EQ(int(MaterialCuller(big).needs(PageId{4, 0, 0}, 3u).finest_level[1]), 1);
+  // Past the points (lod 6.4, the expectation alone): the footprint's own levels.
+  EXPECT_EQ(int(MaterialCuller(small).needs(PageId{8, 0, 0}, 3u).finest_level[1]), 4);
+  EXPECT_EQ(int(MaterialCuller(big).needs(PageId{8, 0, 0}, 3u).finest_level[1]), 4);
 }
 
 TEST(LazyNeeds, MergeKeepsTheFinestLevelAndEveryBit) {

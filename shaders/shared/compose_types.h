@@ -106,10 +106,18 @@ TVT_FN uint tvt_meta_chain_offset(uint res, uint level) {
 // else 4), faded to the expectation between TVT_PATCH_SAMPLES_LO and _HI patches a side.
 TVT_CONST float TVT_PATCH_SAMPLES_LO = 4.0;
 TVT_CONST float TVT_PATCH_SAMPLES_HI = 8.0;
-// Prefiltered FBPB: the features stay exact, at 2 x 2 points of the footprint, until this many
+// Prefiltered FBPB: the features stay exact, at k x k points of the footprint, until this many
 // LODs past the end of the material's feature fade, then give way to their expectation over
 // the next LOD (docs/composition.md, "FBPB features at points").
 TVT_CONST float TVT_FEATURE_POINTS_LODS = 1.0;
+// k: 2, or 4 where half the footprint is wider than a quarter of the typical feature (material
+// LOD above the statistics block's log2 feature size less 1) and the footprint spans 4 material
+// texels or more: a point stands for its cell of the footprint, so the cells must be small
+// against a feature for the features' edges to fall at the right share of them. Each point
+// reads the texture log2(k) LODs finer.
+TVT_FN int tvt_feature_points(float lod, float feature_log2_size) {
+  return (lod >= 2.0 && lod > feature_log2_size - 1.0) ? 4 : 2;
+}
 
 TVT_CONST int TVT_COMPOSE_GROUP = 16;  // compute workgroup edge (texels); lavapipe pays ~16 us per group
 
