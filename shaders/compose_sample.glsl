@@ -190,6 +190,18 @@ void material_texel_coord(int n, int64_t pos_fp, out int64_t global_, out float 
   frac_ = float(num - global_ * period) / float(period);
 }
 
+// Settles a quotient estimate q that is off by at most one: r = remainder for q, brought into
+// [0, period) with q (material_texel_near(), patch_samples()).
+void settle_quotient(inout int q, inout int64_t r, int64_t period) {
+  if (r < 0) {
+    --q;
+    r += period;
+  } else if (r >= period) {
+    ++q;
+    r -= period;
+  }
+}
+
 // material_texel_coord() of pos_fp + delta_fp from pos_fp's global texel g and its remainder
 // rem = pos_fp * R - g * period: while delta spans fewer than 2^20 texels (`near`, a property of
 // the footprint alone) a float estimate of the extra quotient is off by at most one and an
@@ -204,13 +216,7 @@ void material_texel_near(int n, int64_t pos_fp, int64_t g, int64_t rem, float fr
   const int64_t d = delta_fp * int64_t(P.materials[n].resolution);
   int q = int(floor(frac + float(delta_fp) * (float(P.materials[n].resolution) / float(period))));
   int64_t r = rem + d - int64_t(q) * period;
-  if (r < 0) {
-    --q;
-    r += period;
-  } else if (r >= period) {
-    ++q;
-    r -= period;
-  }
+  settle_quotient(q, r, period);
   global_ = g + int64_t(q);
   frac_ = float(r) / float(period);
 }
@@ -521,12 +527,12 @@ void patch_samples(int n, int k, int64_t x_fp, int64_t y_fp, float footprint, in
     const int64_t di = int64_t(d);
     int q = int(floor(fcx + d * inv_ps));
     int64_t r = rcx + di - int64_t(q) * ps;
-    if (r < 0) { --q; r += ps; } else if (r >= ps) { ++q; r -= ps; }
+    settle_quotient(q, r, ps);
     qx[i] = q;
     fx[i] = float(int(r)) / float(ps);
     q = int(floor(fcy + d * inv_ps));
     r = rcy + di - int64_t(q) * ps;
-    if (r < 0) { --q; r += ps; } else if (r >= ps) { ++q; r -= ps; }
+    settle_quotient(q, r, ps);
     qy[i] = q;
     fy[i] = float(int(r)) / float(ps);
   }

@@ -737,6 +737,34 @@ TEST(Prefiltered, ChippedHolesAreInTheFeatureExpectation) {
   }
 }
 
+namespace {
+
+// Asserts that the prefiltered mip-`mip` texels (x * sx.first + sx.second, y * sy.first +
+// sy.second), x, y < n, are the box filter of level 0 (to 1e-9), and returns how many of them
+// a point sample gets wrong (their level-0 texels not all alike: an edge or a hole inside the
+// footprint); -1 at the first texel that is not.
+int box_filter_texels(const PackedScene& direct, const PackedScene& pre, uint32_t mip, int64_t n,
+                      std::pair<int64_t, int64_t> sx, std::pair<int64_t, int64_t> sy) {
+  int edges = 0;
+  for (int64_t y = 0; y < n; ++y)
+    for (int64_t x = 0; x < n; ++x) {
+      const int64_t tx = x * sx.first + sx.second, ty = y * sy.first + sy.second;
+      const glm::dvec4 truth = ground_truth_texel(direct, mip, tx, ty);
+      const glm::dvec4 got = compose_texel_reference(pre, mip, tx, ty);
+      for (int c = 0; c < 4; ++c)
+        if (!(std::abs(got[c] - truth[c]) <= 1e-9)) {
+          ADD_FAILURE() << "mip " << mip << " texel " << x << " " << y << " channel " << c << ": " << got[c]
+                        << " against the box filter's " << truth[c];
+          return -1;
+        }
+      const glm::dvec4 centre = compose_texel_reference(direct, mip, tx, ty);
+      edges += std::abs(centre.g - truth.g) > 0.05 ? 1 : 0;
+    }
+  return edges;
+}
+
+}  // namespace
+
 // Where the features are exact at points (mips up to one LOD past the fade's end), each point
 // stands for a quarter of the footprint with the texture one LOD finer. At mip 1 the points
 // are the four level-0 texel centres and the texture is level 0's, so over a uniform base and
@@ -745,17 +773,7 @@ TEST(Prefiltered, ChippedHolesAreInTheFeatureExpectation) {
 TEST(Prefiltered, FeaturesAtPointsAreTheBoxFilterOfLevel0AtMip1) {
   const SceneAssets a = big_feature_scene(0.5f);
   const PackedScene direct = pack(a), pre = pack(a, prefiltered_options());
-  int edges = 0;
-  for (int64_t y = 0; y < 64; ++y)
-    for (int64_t x = 0; x < 64; ++x) {
-      const glm::dvec4 truth = ground_truth_texel(direct, 1, x * 7 + 3, y * 5 + 1);
-      const glm::dvec4 got = compose_texel_reference(pre, 1, x * 7 + 3, y * 5 + 1);
-      for (int c = 0; c < 4; ++c) ASSERT_NEAR(got[c], truth[c], 1e-9) << x << " " << y << " channel " << c;
-      // A texel whose level-0 texels are not all alike (an edge or a hole inside the footprint).
-      const glm::dvec4 centre = compose_texel_reference(direct, 1, x * 7 + 3, y * 5 + 1);
-      edges += std::abs(centre.g - truth.g) > 0.05 ? 1 : 0;
-    }
-  EXPECT_GT(edges, 20);  // the box filter differs from a point sample on many of them
+  EXPECT_GT(box_filter_texels(direct, pre, 1, 64, {7, 3}, {5, 1}), 20);  // the box filter differs from a point sample on many of them
   double err = 0;
   for (int64_t y = 0; y < 32; ++y)
     for (int64_t x = 0; x < 32; ++x) {
@@ -795,16 +813,7 @@ TEST(Prefiltered, SmallFeaturesTakeFourByFourPointsExactAtMip2) {
   const PackedScene direct = pack(a), pre = pack(a, prefiltered_options());
   EXPECT_EQ(gpu::tvt_feature_points(2.0f, float(0.5 * std::log2(25.0))), 4);
   EXPECT_EQ(gpu::tvt_feature_points(1.0f, float(0.5 * std::log2(25.0))), 2);  // below 4 material texels
-  int edges = 0;
-  for (int64_t y = 0; y < 48; ++y)
-    for (int64_t x = 0; x < 48; ++x) {
-      const glm::dvec4 truth = ground_truth_texel(direct, 2, x * 5 + 3, y * 3 + 1);
-      const glm::dvec4 got = compose_texel_reference(pre, 2, x * 5 + 3, y * 3 + 1);
-      for (int c = 0; c < 4; ++c) ASSERT_NEAR(got[c], truth[c], 1e-9) << x << " " << y << " channel " << c;
-      const glm::dvec4 centre = compose_texel_reference(direct, 2, x * 5 + 3, y * 3 + 1);
-      edges += std::abs(centre.g - truth.g) > 0.05 ? 1 : 0;
-    }
-  EXPECT_GT(edges, 100);  // stone edges and stones of their own decision inside most footprints
+  EXPECT_GT(box_filter_texels(direct, pre, 2, 48, {5, 3}, {3, 1}), 100);  // stone edges and stones of their own decision inside most footprints
 }
 
 TEST(Mips, GroundTruthIsSupersamplingAtTheLevel0Rate) {
