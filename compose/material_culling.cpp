@@ -104,9 +104,9 @@ MaterialNeeds MaterialCuller::needs(const PageId& page, uint32_t mask) const {
     // Prefiltered, it reads it (the features at points, then their statistics chain) at every
     // mip where level 0 has features (fade0 > 0: the level-0 LOD below the fade's end), and the
     // features at points read the texture log2 k LODs finer than the footprint, k from
-    // tvt_feature_points() and the feature size in the material's statistics block: the
-    // material is loaded here (the upload of what this returns loads it anyway); one that fails
-    // to load is taken at k = 4, and its upload reports the error.
+    // tvt_feature_points() (4 only under FBPB+DPT) and the feature size in the material's
+    // statistics block: the material is loaded here (the upload of what this returns loads it
+    // anyway); one that fails to load is taken at k = 4, and its upload reports the error.
     const bool fbpb_meta =
         n > 0 && (m.mode == gpu::TVT_MODE_FBPB || m.mode == gpu::TVT_MODE_FBPB_DPT) && m.meta_offset != gpu::TVT_NO_META;
     const bool prefiltered = params_.prefiltered != 0 && page.mip > 0;
@@ -114,7 +114,7 @@ MaterialNeeds MaterialCuller::needs(const PageId& page, uint32_t mask) const {
     const bool level0_features = prefiltered && level0_lod - k_margin < fbpb_fade_end(m);
     const bool points = fbpb_meta && level0_features && lod - k_margin < fbpb_prefiltered_end(m);
     double finer = points ? 1.0 : 0.0;
-    if (points && lod + k_margin >= 2.0) {
+    if (points && m.mode == gpu::TVT_MODE_FBPB_DPT && lod + k_margin >= 2.0) {
       const bool loaded = bool(scene_.load(bit));
       const double feature_log2_size = loaded ? double(std::bit_cast<float>(scene_.texels(size_t(n))[
           gpu::tvt_material_stats_offset(uint32_t(m.resolution), uint32_t(m.mip_count)) + gpu::TVT_STATS_FEATURE_LOG2_SIZE]))

@@ -732,7 +732,7 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
         if (!prefiltered) {
           w = c.fbpb_exact(m, gx, gy, plain, with_dpt, non_feature, colour, visible);
         } else {
-          const int k = gpu::tvt_feature_points(float(lod), float(c.stat(m, gpu::TVT_STATS_FEATURE_LOG2_SIZE)));
+          const int k = gpu::tvt_feature_points(float(lod), float(c.stat(m, gpu::TVT_STATS_FEATURE_LOG2_SIZE)), with_dpt);
           // Half the points' spacing, footprint / 2k, in fixed point; the points at odd multiples of it.
           const int64_t half_step = std::llround(std::ldexp(footprint, gpu::TVT_FIXED_BITS - (k == 4 ? 3 : 2)));
           glm::dvec4 weighted(0.0);

@@ -789,7 +789,7 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
         // Direct: the feature at the sample. Prefiltered: the mean w over k x k points of the
         // footprint, each with the texture over its own part of it (log2 k LODs finer), and their
         // w-weighted colour (docs/composition.md, "FBPB features at points").
-        const int kk = prefiltered ? tvt_feature_points(lod, material_stat(n, TVT_STATS_FEATURE_LOG2_SIZE)) : 1;
+        const int kk = prefiltered ? tvt_feature_points(lod, material_stat(n, TVT_STATS_FEATURE_LOG2_SIZE), with_dpt) : 1;
         const float point_lod = lod - (kk == 4 ? 2.0 : 1.0);
         // Half the points' spacing, footprint / 2k, in fixed point; the points at odd multiples of it.
         const int64_t half_step = int64_t(round(ldexp(footprint, TVT_FIXED_BITS - (kk == 4 ? 3 : 2))));

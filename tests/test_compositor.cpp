@@ -784,12 +784,15 @@ TEST(Prefiltered, FeaturesAtPointsAreTheBoxFilterOfLevel0AtMip1) {
   EXPECT_LT(err, 0.01);
 }
 
-// Features smaller than the footprint: 4 x 4 points (tvt_feature_points: the material LOD above
-// the log2 feature size less 1, and at least 2). At mip 2 they are the sixteen level-0 texel
-// centres with level 0's texture, so the prefiltered texel is again the box filter of level 0,
-// every small stone's own decision included; with 2 x 2 points it would not be.
+// Features smaller than the footprint under FBPB+DPT: 4 x 4 points (tvt_feature_points: the
+// material LOD above the log2 feature size less 1, and at least 2). At mip 2 they are the
+// sixteen level-0 texel centres with level 0's texture, so the prefiltered texel is again the
+// box filter of level 0, every small stone's own decision included; with 2 x 2 points it would
+// not be. The DPT layer has no patches (p = 0), so the ground's value is 0 at level 0 and in
+// the footprint alike.
 TEST(Prefiltered, SmallFeaturesTakeFourByFourPointsExactAtMip2) {
-  auto a = test::make_synthetic_assets({k_base, {{0, 40, 200, 128}, 0.5f, Mode::Fbpb, 64}});
+  auto a = test::make_synthetic_assets({k_base, {{0, 40, 200, 128}, 0.5f, Mode::FbpbDpt, 64}});
+  a.desc.materials[1].dpt.layers = {{16, 0, 1, 1, 0.5}};  // FBPB+DPT needs a layer
   MetaTexture meta;
   meta.resolution = 64;
   meta.texels.resize(64 * 64);
@@ -811,8 +814,9 @@ TEST(Prefiltered, SmallFeaturesTakeFourByFourPointsExactAtMip2) {
   a.desc.materials[1].fbpb.fade_lod_lo = 0.0;  // points until LOD 2
   a.desc.materials[1].fbpb.fade_lod_hi = 1.0;
   const PackedScene direct = pack(a), pre = pack(a, prefiltered_options());
-  EXPECT_EQ(gpu::tvt_feature_points(2.0f, float(0.5 * std::log2(25.0))), 4);
-  EXPECT_EQ(gpu::tvt_feature_points(1.0f, float(0.5 * std::log2(25.0))), 2);  // below 4 material texels
+  EXPECT_EQ(gpu::tvt_feature_points(2.0f, float(0.5 * std::log2(25.0)), true), 4);
+  EXPECT_EQ(gpu::tvt_feature_points(1.0f, float(0.5 * std::log2(25.0)), true), 2);  // below 4 material texels
+  EXPECT_EQ(gpu::tvt_feature_points(2.0f, float(0.5 * std::log2(25.0)), false), 2);  // FBPB alone
   EXPECT_GT(box_filter_texels(direct, pre, 2, 48, {5, 3}, {3, 1}), 100);  // stone edges and stones of their own decision inside most footprints
 }
 

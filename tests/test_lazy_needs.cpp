@@ -19,6 +19,7 @@ PackedScene scene(double period, uint32_t supersample = 1, std::optional<Mode> m
   a.desc.materials[1].period_texels = period;
   a.desc.materials[1].has_fbpb = true;
   a.materials->edit(1).meta = test::square_feature_meta(16, 8, 8, feature_side - 1);
+  if (method == Mode::FbpbDpt) a.desc.materials[1].dpt.layers = {{8, 1, 1, 1, 0.5}};  // none: plain FBPB
   ComposeOptions o;
   o.supersample = supersample;
   o.method = method;
@@ -71,17 +72,20 @@ TEST(LazyNeeds, PrefilteredFbpbReadsTheMetaBlockAtEveryMipWhereLevel0HasFeatures
   for (uint32_t mip = 1; mip < 12; ++mip) EXPECT_EQ(MaterialCuller(faded).needs(PageId{mip, 0, 0}, 3u).meta_mask, 0u) << mip;
 }
 
-// Prefiltered FBPB features at k x k points read the texture log2 k LODs finer: k = 4 where the
-// LOD is above the log2 feature size less 1 (tvt_feature_points), from the material's statistics.
+// Prefiltered FBPB features at k x k points read the texture log2 k LODs finer: k = 4 under
+// FBPB+DPT where the LOD is above the log2 feature size less 1 (tvt_feature_points), from the
+// material's statistics; 2 under FBPB alone.
 TEST(LazyNeeds, PrefilteredFeaturePointsReadOneOrTwoLodsFiner) {
   // R / T = 1/3: lod = mip - 1.585; mip 4 is lod 2.415, within the points (to lod 5).
-  const PackedScene small = scene(48.0, 1, std::nullopt, true, 5);  // log2 5 - 1 = 1.32: k = 4
+  const PackedScene small = scene(48.0, 1, Mode::FbpbDpt, true, 5);  // log2 5 - 1 = 1.32: k = 4
   EXPECT_EQ(int(MaterialCuller(small).needs(PageId{4, 0, 0}, 3u).finest_level[1]), 0);
-  const PackedScene big = scene(48.0, 1, std::nullopt, true, 11);  // log2 11 - 1 = 2.46: k = 2
+  const PackedScene small_fbpb = scene(48.0, 1, std::nullopt, true, 5);  // FBPB alone: k = 2
+  EXPECT_EQ(int(MaterialCuller(small_fbpb).needs(PageId{4, 0, 0}, 3u).finest_level[1]), 1);
+  const PackedScene big = scene(48.0, 1, Mode::FbpbDpt, true, 11);  // log2 11 - 1 = 2.46: k = 2
   EXPECT_EQ(int(MaterialCuller(big).needs(PageId{4, 0, 0}, 3u).finest_level[1]), 1);
   // Past the points (lod 6.4, the expectation alone): the footprint's own levels.
-  EXPECT_EQ(int(MaterialCuller(small).needs(PageId{8, 0, 0}, 3u).finest_level[1]), 4);
-  EXPECT_EQ(int(MaterialCuller(big).needs(PageId{8, 0, 0}, 3u).finest_level[1]), 4);
+  for (const PackedScene* s : {&small, &small_fbpb, &big})
+    EXPECT_EQ(int(MaterialCuller(*s).needs(PageId{8, 0, 0}, 3u).finest_level[1]), 4);
 }
 
 TEST(LazyNeeds, MergeKeepsTheFinestLevelAndEveryBit) {

@@ -110,13 +110,17 @@ TVT_CONST float TVT_PATCH_SAMPLES_HI = 8.0;
 // LODs past the end of the material's feature fade, then give way to their expectation over
 // the next LOD (docs/composition.md, "FBPB features at points").
 TVT_CONST float TVT_FEATURE_POINTS_LODS = 1.0;
-// k: 2, or 4 where half the footprint is wider than a quarter of the typical feature (material
-// LOD above the statistics block's log2 feature size less 1) and the footprint spans 4 material
-// texels or more: a point stands for its cell of the footprint, so the cells must be small
-// against a feature for the features' edges to fall at the right share of them. Each point
-// reads the texture log2(k) LODs finer.
-TVT_FN int tvt_feature_points(float lod, float feature_log2_size) {
-  return (lod >= 2.0 && lod > feature_log2_size - 1.0) ? 4 : 2;
+// k: 2, or under FBPB+DPT (`with_dpt`) 4 where half the footprint is wider than a quarter of
+// the typical feature (material LOD above the statistics block's log2 feature size less 1) and
+// the footprint spans 4 material texels or more: a point stands for its cell of the footprint,
+// so the cells must be small against a feature for the features' edges to fall at the right
+// share of them. How much a misplaced edge costs is the step in w across it: under FBPB+DPT the
+// ground takes DPT's patch value, 0 or 1 away from the patches' edges, against a feature's
+// min(cm max(p, f), 1); under FBPB alone it takes the plain weight p, a smaller step, and
+// 2 x 2 points keep the error within the budget at half the cost (docs/composition.md). Each
+// point reads the texture log2(k) LODs finer.
+TVT_FN int tvt_feature_points(float lod, float feature_log2_size, bool with_dpt) {
+  return (with_dpt && lod >= 2.0 && lod > feature_log2_size - 1.0) ? 4 : 2;
 }
 
 TVT_CONST int TVT_COMPOSE_GROUP = 16;  // compute workgroup edge (texels); lavapipe pays ~16 us per group
