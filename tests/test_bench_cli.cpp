@@ -33,6 +33,7 @@ TEST(BenchMipsCli, WritesJsonAndOnePlotPanelPerMethodWithACurvePerStrategy) {
                                    out),
             0)
       << out;
+  EXPECT_EQ(count(out, "target (prefiltered, the default: >= 35 dB at <= 2x direct): met at mips "), 2u) << out;
   std::ifstream in(json_path);
   const nlohmann::json j = nlohmann::json::parse(in);
   for (const char* method : {"blendmap", "dpt2"}) {
@@ -45,6 +46,10 @@ TEST(BenchMipsCli, WritesJsonAndOnePlotPanelPerMethodWithACurvePerStrategy) {
       EXPECT_TRUE(std::isfinite(pre) && pre > 10.0) << method << " mip " << mip;
       EXPECT_GT(ss2, direct) << method << " mip " << mip;  // supersampling gets closer to the filtered truth
       EXPECT_DOUBLE_EQ(m.at("direct").at("cost_vs_direct").get<double>(), 1.0);
+      // The verdict on the default strategy follows from its own figures.
+      EXPECT_EQ(m.at("target_met").get<bool>(),
+                pre >= 35.0 && m.at("prefiltered").at("cost_vs_direct").get<double>() <= 2.0)
+          << method << " mip " << mip;
     }
     EXPECT_TRUE(j.at("methods").at(method).at("2").contains("supersample:4"));
     EXPECT_FALSE(j.at("methods").at(method).at("1").contains("supersample:4"));  // capped at 2^mip

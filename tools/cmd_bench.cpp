@@ -303,6 +303,10 @@ double psnr_rgb(const std::vector<uint8_t>& a, const std::vector<uint8_t>& b) {
   return 10.0 * std::log10(255.0 * 255.0 / (se / double(n)));
 }
 
+// The quality target of the default mip strategy: this PSNR against the ground truth at no
+// more than this multiple of the direct composition's time.
+constexpr double k_mips_target_db = 35.0, k_mips_target_cost = 2.0;
+
 // Mip strategies of docs/composition.md against the ground truth: the box-filter pyramid of
 // the level-0 composition (streaming/pyramid.h, what `bake --pyramid filtered` stores), built
 // from the 4^m level-0 pages under each page. Error (over payload texels) and cost side by side.
@@ -349,6 +353,7 @@ int run_bench_mips(const BenchMipsArgs& a) {
     const std::string method_name(to_string(method));
     PlotPanel panel{method_name, {}};
     std::map<int, PlotSeries> curves;  // strategy (in table order) -> its points over the mips
+    std::string target_met, target_missed;  // the default strategy against the quality target, per mip
 
     std::printf("terravt bench mips: method %s, %u pages per mip, device %s\n\n", method_name.c_str(), a.pages,
                 ctx.value()->device_name().c_str());
@@ -409,6 +414,14 @@ int run_bench_mips(const BenchMipsArgs& a) {
         std::printf("%4u %-16s %12.2f %10.2f %11.1fx\n", m, name.c_str(), ms, psnr, cost);
         j["methods"][method_name][std::to_string(m)][name] = {{"ms_per_page", ms}, {"psnr_db", psnr}, {"cost_vs_direct", cost}};
         const MipStrategy& st = strategies[i];
+        if (st.prefiltered) {
+          char row[64];
+          const bool met = psnr >= k_mips_target_db && cost <= k_mips_target_cost;
+          std::snprintf(row, sizeof row, met ? "%u" : "%u (%.2f dB, %.2fx)", m, psnr, cost);
+          std::string& list = met ? target_met : target_missed;
+          list += (list.empty() ? "" : ", ") + std::string(row);
+          j["methods"][method_name][std::to_string(m)]["target_met"] = met;
+        }
         PlotSeries& curve = curves[st.prefiltered ? 1 : st.supersample <= 1 ? 0 : 1 + std::countr_zero(st.supersample)];
         curve.name = name;
         curve.points.push_back(PlotPoint{cost, psnr, "m" + std::to_string(m)});
@@ -421,7 +434,9 @@ int run_bench_mips(const BenchMipsArgs& a) {
     }
     for (auto& [s, curve] : curves) panel.series.push_back(std::move(curve));
     panels.push_back(std::move(panel));
-    std::printf("\n");
+    std::printf("target (prefiltered, the default: >= %.0f dB at <= %.0fx direct): met at mips %s; not met at mips %s\n\n",
+                k_mips_target_db, k_mips_target_cost, target_met.empty() ? "-" : target_met.c_str(),
+                target_missed.empty() ? "-" : target_missed.c_str());
   }
   if (!a.json_out.empty())
     if (auto w = write_text_file(a.json_out, j.dump(2) + "\n"); !w) return fail(cmd, "--json: " + w.error().message, 1);
