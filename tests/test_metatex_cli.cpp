@@ -3,9 +3,12 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -83,6 +86,21 @@ TEST_F(MetatexCliTest, AutomaticIsolationWritesMetaAndDebug) {
   auto meta = tvt::read_meta_texture(path("meta.exr"));
   ASSERT_TRUE(meta.ok()) << meta.error().message;
   EXPECT_EQ(meta->feature_count, 3u);
+  // The printed sizes are the features' own (texels per centroid in the meta-texture):
+  // smallest, median and largest, and the largest against the median.
+  std::map<std::pair<int, int>, uint64_t> area;
+  for (int y = 0; y < R; ++y)
+    for (int x = 0; x < R; ++x)
+      if (const tvt::MetaTexel& t = meta->at(x, y); t.d != 0) ++area[{((x + t.dx) % R + R) % R, ((y + t.dy) % R + R) % R}];
+  ASSERT_EQ(area.size(), 3u);
+  std::vector<uint64_t> sizes;
+  for (const auto& [centroid, texels] : area) sizes.push_back(texels);
+  std::sort(sizes.begin(), sizes.end());
+  char line[160];
+  std::snprintf(line, sizeof line, "feature size     smallest %llu, median %llu, largest %llu texels (largest / median %.2f)",
+                (unsigned long long)sizes[0], (unsigned long long)sizes[1], (unsigned long long)sizes[2],
+                double(sizes[2]) / double(sizes[1]));
+  EXPECT_NE(output_.find(line), std::string::npos) << line << "\n" << output_;
   const tvt::MetaTexel& corner = meta->at(R - 1, R - 1);  // part of the corner disc
   EXPECT_EQ(corner.d, 1);
   EXPECT_EQ(corner.dx, 1);

@@ -219,7 +219,7 @@ int run_metatex(const MetatexArgs& a, bool threshold_given) {
       ++sizes[size_t(l)];
       ++covered;
     }
-  const auto [smallest, largest] = std::minmax_element(sizes.begin(), sizes.end());
+  std::sort(sizes.begin(), sizes.end());
   const double seconds = since(start);
   std::printf("metatex: %s\n", m.source.c_str());
   std::printf("  resolution       %d x %d texels\n", r, r);
@@ -227,9 +227,14 @@ int run_metatex(const MetatexArgs& a, bool threshold_given) {
   std::printf("  isolation        %s\n", method.c_str());
   std::printf("  features         %u\n", labels.count);
   std::printf("  texels covered   %.2f %%\n", 100.0 * double(covered) / (double(r) * double(r)));
-  if (labels.count > 0)
-    std::printf("  feature size     smallest %llu, largest %llu texels\n", (unsigned long long)*smallest,
-                (unsigned long long)*largest);
+  if (labels.count > 0) {
+    // The largest against the median (the upper one of an even count): one feature many times
+    // the typical one is usually several merged, unless the image really has such a feature.
+    const uint64_t median = sizes[sizes.size() / 2];
+    std::printf("  feature size     smallest %llu, median %llu, largest %llu texels (largest / median %.2f)\n",
+                (unsigned long long)sizes.front(), (unsigned long long)median, (unsigned long long)sizes.back(),
+                double(sizes.back()) / double(median));
+  }
   std::printf("  specks dropped   %u (below %u texels)\n", specks,
               report.speck_limit ? report.speck_limit : a.min_texels);
   std::printf("  soft map blur    sigma %.2f texels\n", a.blur);
