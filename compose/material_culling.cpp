@@ -1,7 +1,6 @@
 #include "compose/material_culling.h"
 
 #include <algorithm>
-#include <bit>
 #include <cmath>
 
 namespace tvt {
@@ -114,12 +113,13 @@ MaterialNeeds MaterialCuller::needs(const PageId& page, uint32_t mask) const {
     const bool level0_features = prefiltered && level0_lod - k_margin < fbpb_fade_end(m);
     const bool points = fbpb_meta && level0_features && lod - k_margin < fbpb_prefiltered_end(m);
     double finer = points ? 1.0 : 0.0;
-    if (points && m.mode == gpu::TVT_MODE_FBPB_DPT && lod + k_margin >= 2.0) {
+    const bool with_dpt = m.mode == gpu::TVT_MODE_FBPB_DPT;
+    const float reach = float(lod + k_margin);
+    // The feature size decides only where some size would give k = 4 (-inf: every size).
+    if (points && gpu::tvt_feature_points(reach, -INFINITY, with_dpt) == 4) {
       const bool loaded = bool(scene_.load(bit));
-      const double feature_log2_size = loaded ? double(std::bit_cast<float>(scene_.texels(size_t(n))[
-          gpu::tvt_material_stats_offset(uint32_t(m.resolution), uint32_t(m.mip_count)) + gpu::TVT_STATS_FEATURE_LOG2_SIZE]))
-                                              : 0.0;
-      if (!loaded || lod + k_margin > feature_log2_size - 1.0) finer = 2.0;
+      if (!loaded || gpu::tvt_feature_points(reach, scene_.stat(size_t(n), gpu::TVT_STATS_FEATURE_LOG2_SIZE), with_dpt) == 4)
+        finer = 2.0;
     }
     const double level = std::clamp(lod - finer - k_margin, 0.0, double(std::max(m.mip_count - 1, 0)));
     out.finest_level[size_t(n)] = uint8_t(std::floor(level));

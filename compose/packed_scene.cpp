@@ -91,6 +91,11 @@ std::span<const uint32_t> PackedScene::texels(size_t n) const {
   return m.value().shared->texels;
 }
 
+float PackedScene::stat(size_t n, int i) const {
+  const gpu::TvtMaterial& m = params.materials[n];
+  return std::bit_cast<float>(texels(n)[gpu::tvt_material_stats_offset(uint32_t(m.resolution), uint32_t(m.mip_count)) + size_t(i)]);
+}
+
 std::span<const uint32_t> PackedScene::meta(size_t n) const {
   const auto& m = cache_->get(n);
   TVT_CHECK(!m.error() && "material load failed: call PackedScene::load() first to get the error");

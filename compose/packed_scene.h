@@ -79,6 +79,9 @@ struct PackedScene {
   // r | g<<8 | b<<16 | a<<24, all mips. Loads on first use; a load error is fatal here, so
   // callers that can meet one call load() first.
   std::span<const uint32_t> texels(size_t n) const;
+  // Word i of material n's statistics block (TVT_MATERIAL_STATS_WORDS, after its 1x1 mip), as
+  // the float it holds; loads as texels() does.
+  float stat(size_t n, int i) const;
   // Material n's meta words at 2 * meta_offset, two per texel: (dx & 0xffff) | dy<<16,
   // d | f<<8 | v<<16; empty when meta_offset is TVT_NO_META.
   std::span<const uint32_t> meta(size_t n) const;

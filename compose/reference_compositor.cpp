@@ -342,10 +342,7 @@ struct Ctx {
   }
 
   // The statistics block word `i` of material m (TVT_MATERIAL_STATS_WORDS).
-  double stat(const gpu::TvtMaterial& m, int i) const {
-    return double(std::bit_cast<float>(
-        s.texels(index_of(m))[gpu::tvt_material_stats_offset(uint32_t(m.resolution), uint32_t(m.mip_count)) + size_t(i)]));
-  }
+  double stat(const gpu::TvtMaterial& m, int i) const { return double(s.stat(index_of(m), i)); }
 
   // Variance of A and its covariances with R, G, B within a footprint of material LOD `lod`,
   // interpolated between levels as trilinear() interpolates the texels.
@@ -733,8 +730,9 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
           w = c.fbpb_exact(m, gx, gy, plain, with_dpt, non_feature, colour, visible);
         } else {
           const int k = gpu::tvt_feature_points(float(lod), float(c.stat(m, gpu::TVT_STATS_FEATURE_LOG2_SIZE)), with_dpt);
+          const int log2k = std::countr_zero(unsigned(k));
           // Half the points' spacing, footprint / 2k, in fixed point; the points at odd multiples of it.
-          const int64_t half_step = std::llround(std::ldexp(footprint, gpu::TVT_FIXED_BITS - (k == 4 ? 3 : 2)));
+          const int64_t half_step = std::llround(std::ldexp(footprint, gpu::TVT_FIXED_BITS - 1 - log2k));
           glm::dvec4 weighted(0.0);
           int shown = 0;
           for (int j = 0; j < k; ++j)
@@ -745,7 +743,7 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
               int64_t pgx, pgy;
               c.material_coord(m, px, pu, pgx);
               c.material_coord(m, py, pv, pgy);
-              glm::dvec4 pc = c.trilinear(m, pu, pv, lod - (k == 4 ? 2.0 : 1.0));
+              glm::dvec4 pc = c.trilinear(m, pu, pv, lod - log2k);
               bool shows = false;
               const double ground = clamp01(non_feature + ground_slope * (pc.a - colour.a));  // at its own A
               const double wi = c.fbpb_exact(m, pgx, pgy, plain, with_dpt, ground, pc, shows);

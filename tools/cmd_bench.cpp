@@ -449,8 +449,8 @@ int run_bench_mips(const BenchMipsArgs& a) {
     layout.y_label = "PSNR dB";
     layout.y_min = 15;
     layout.y_max = 60;
-    layout.target_y = 35;
-    layout.target_label = "35 dB target";
+    layout.target_y = k_mips_target_db;
+    layout.target_label = std::to_string(int(k_mips_target_db)) + " dB target";
     if (auto w = write_text_file(svg_out, svg_plot(layout, panels)); !w) return fail(cmd, "--svg: " + w.error().message, 1);
   }
   return 0;
