@@ -30,6 +30,17 @@ bool ramp_may_be_below_one(double v, double lo, double hi) {
 bool ramp_is_positive(float v, float lo, float hi) { return hi <= lo ? v >= lo : v > lo; }
 bool ramp_is_below_one(float v, float lo, float hi) { return hi <= lo ? v < lo : v < hi; }
 
+// patch_samples(): the corners of a layer's sample lattice span at most the footprint and a
+// patch on either side (and at most 7 patches). Below a weight texel's spacing a side, less a
+// margin far above the float rounding of weight_at()'s grid coordinate, they fall in two
+// adjacent weight cells a side, which the shader's narrow path assumes.
+bool sample_lattice_is_narrow(const gpu::TvtComposeParams& p, double footprint, double patch_texels) {
+  if (p.weight_width <= 0 || p.weight_height <= 0 || p.log2_vt < 0 || p.log2_vt > 62) return false;
+  const double span = std::min(footprint + 2.0 * patch_texels, 7.0 * patch_texels) + 1.0;  // + rounding of the offsets
+  const double spacing = std::ldexp(1.0, p.log2_vt) / double(std::max(p.weight_width, p.weight_height));
+  return span < spacing * (1.0 - 1.0 / 64.0);
+}
+
 }  // namespace
 
 bool small_coordinates(const gpu::TvtComposeParams& p) {
@@ -76,8 +87,10 @@ uint32_t prefiltered_parts(const gpu::TvtComposeParams& p, uint32_t mip) {
         if (exact_ratio ? ramp_is_below_one(ratio_f, lo, hi) : ramp_may_be_below_one(ratio, lo, hi)) {
           parts |= gpu::TVT_PART_DPT_EXPECT;
           const double patches = footprint / std::max(texels, 1e-6);
-          if (ramp_may_be_below_one(patches, gpu::TVT_PATCH_SAMPLES_LO, gpu::TVT_PATCH_SAMPLES_HI))
+          if (ramp_may_be_below_one(patches, gpu::TVT_PATCH_SAMPLES_LO, gpu::TVT_PATCH_SAMPLES_HI)) {
             parts |= gpu::TVT_PART_DPT_SAMPLES;
+            if (!sample_lattice_is_narrow(p, footprint, texels)) parts |= gpu::TVT_PART_DPT_SAMPLES_WIDE;
+          }
         }
       }
     if (m.mode == gpu::TVT_MODE_FBPB || m.mode == gpu::TVT_MODE_FBPB_DPT) {  // compose_sample()'s FBPB branch
@@ -218,7 +231,8 @@ const vk::ComputePipeline* GpuComposer::variant(bool prefiltered, uint32_t parts
       {TVT_COMPOSE_SPEC_HEX, hex ? 1u : 0u},
       {TVT_COMPOSE_SPEC_PREFILTERED, prefiltered ? 1u : 0u},
       {TVT_COMPOSE_SPEC_PARTS, parts},
-      {TVT_COMPOSE_SPEC_SMALL, small ? 1u : 0u}};
+      {TVT_COMPOSE_SPEC_SMALL, small ? 1u : 0u},
+      {TVT_COMPOSE_SPEC_ONLY_PREFILTERED, specialise_ && prefiltered ? 1u : 0u}};
   vk::ComputePipeline pipeline =
       context_->create_compute_pipeline(shaders::compose_comp(), bindings, sizeof(gpu::TvtComposePush), constants);
   if (pipeline.handle() == VK_NULL_HANDLE) return nullptr;

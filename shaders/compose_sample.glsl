@@ -14,6 +14,7 @@ layout(constant_id = TVT_COMPOSE_SPEC_HEX) const bool k_compose_hex = true;
 layout(constant_id = TVT_COMPOSE_SPEC_PREFILTERED) const bool k_compose_prefiltered = true;
 layout(constant_id = TVT_COMPOSE_SPEC_PARTS) const uint k_compose_parts = 0xffffffffu;
 layout(constant_id = TVT_COMPOSE_SPEC_SMALL) const bool k_compose_small = false;
+layout(constant_id = TVT_COMPOSE_SPEC_ONLY_PREFILTERED) const bool k_compose_only_prefiltered = false;
 bool part(uint bit) { return (k_compose_parts & bit) != 0u; }
 bool mode_is(int mode, int m) { return (k_compose_modes & (1u << uint(m))) != 0u && mode == m; }
 
@@ -99,19 +100,29 @@ float spread_variance(vec4 spread) {
 // float only after clamping, as a fraction of the terrain: its rounding (2^-24 of the terrain,
 // at most 2^-11 of a weight texel for grids up to 8192) is far below what the smooth weight
 // fields resolve, and it keeps the hot path in 32-bit arithmetic.
-float weight_at(int layer, int64_t x_fp, int64_t y_fp) {
+// One axis of weight_at(): the grid cell (unclamped) whose texels a bilinear fetch of a
+// `size`-texel axis blends at c_fp, the pair it reads and the fraction towards the second.
+void weight_axis(int64_t c_fp, int size, out int cell, out int c0, out int c1, out float f) {
   const int shift = P.log2_vt + TVT_FIXED_BITS;
   const int64_t vt_fp = int64_t(1) << shift;
   const float inv = exp2(-float(shift));
-  const float u = float(clamp(x_fp, int64_t(0), vt_fp)) * inv * float(P.weight_width) - 0.5;
-  const float v = float(clamp(y_fp, int64_t(0), vt_fp)) * inv * float(P.weight_height) - 0.5;
-  const float fu = floor(u), fv = floor(v);
-  const float fx = u - fu, fy = v - fv;
-  const int x0 = clamp(int(fu), 0, P.weight_width - 1), x1 = clamp(int(fu) + 1, 0, P.weight_width - 1);
-  const int y0 = clamp(int(fv), 0, P.weight_height - 1), y1 = clamp(int(fv) + 1, 0, P.weight_height - 1);
-  const int base = layer * P.weight_height;
-  const float w00 = weights[(base + y0) * P.weight_width + x0], w10 = weights[(base + y0) * P.weight_width + x1];
-  const float w01 = weights[(base + y1) * P.weight_width + x0], w11 = weights[(base + y1) * P.weight_width + x1];
+  const float u = float(clamp(c_fp, int64_t(0), vt_fp)) * inv * float(size) - 0.5;
+  const float fu = floor(u);
+  f = u - fu;
+  cell = int(fu);
+  c0 = clamp(cell, 0, size - 1);
+  c1 = clamp(cell + 1, 0, size - 1);
+}
+
+float weight_texel(int layer, int x, int y) { return weights[(layer * P.weight_height + y) * P.weight_width + x]; }
+
+float weight_at(int layer, int64_t x_fp, int64_t y_fp) {
+  int cell, x0, x1, y0, y1;
+  float fx, fy;
+  weight_axis(x_fp, P.weight_width, cell, x0, x1, fx);
+  weight_axis(y_fp, P.weight_height, cell, y0, y1, fy);
+  const float w00 = weight_texel(layer, x0, y0), w10 = weight_texel(layer, x1, y0);
+  const float w01 = weight_texel(layer, x0, y1), w11 = weight_texel(layer, x1, y1);
   return clamp01(mix(mix(w00, w10, fx), mix(w01, w11, fx), fy));
 }
 
@@ -472,14 +483,20 @@ void patch_cell(int n, int k, int64_t c_fp, out int64_t i, out float f) {
   }
 }
 
-// Corner (jx, jy)'s patch mask m_j = p_j > 0 && r_j^R <= p_j^P (eq 4.1, 4.2), compared in the
-// log domain: two log2 instead of two pow; r is never 0, and p = 0 fails the first test.
+// Corner (jx, jy)'s patch mask m_j = p_j > 0 && r_j^R <= p_j^P (eq 4.1, 4.2) for its weight
+// p_j = w, compared in the log domain: two log2 instead of two pow; r is never 0, and p = 0 fails
+// the first test.
+bool patch_mask(int n, int k, int64_t jx, int64_t jy, float w) {
+  const float r = tvt_rand01(tvt_hash_coord(jx, jy, P.materials[n].dpt[k].salt));
+  return w > 0.0 && P.materials[n].dpt[k].exp_r * log2(r) <= P.materials[n].dpt[k].exp_p * log2(w);
+}
+
+// The mask of corner (jx, jy), its weight at the patch centre.
 float patch_corner(int n, int k, int64_t jx, int64_t jy) {
   const int64_t ps = P.materials[n].dpt[k].patch_fp;
   const int64_t half_patch = ps / 2;
   const float w = weight_at(P.materials[n].weight_layer, jx * ps + half_patch, jy * ps + half_patch);
-  const float r = tvt_rand01(tvt_hash_coord(jx, jy, P.materials[n].dpt[k].salt));
-  return w > 0.0 && P.materials[n].dpt[k].exp_r * log2(r) <= P.materials[n].dpt[k].exp_p * log2(w) ? 1.0 : 0.0;
+  return patch_mask(n, k, jx, jy, w) ? 1.0 : 0.0;
 }
 
 // The layer's w from its cell's four corner masks (0 or 1) and the position's fractions (eq
@@ -543,9 +560,48 @@ void patch_samples(int n, int k, int64_t x_fp, int64_t y_fp, float footprint, in
   const int nx = qx[kk - 1] - qx[0] + 2, ny = qy[kk - 1] - qy[0] + 2;
   if (nx > 8 || ny > 8) return;
   uint64_t bits = 0ul;
-  for (int j = 0; j < ny; ++j)
-    for (int i = 0; i < nx; ++i)
-      if (patch_corner(n, k, cx + int64_t(qx[0] + i), cy + int64_t(qy[0] + j)) > 0.0) bits |= uint64_t(1) << uint(j * 8 + i);
+  if (part(TVT_PART_DPT_SAMPLES_WIDE)) {
+    for (int j = 0; j < ny; ++j)
+      for (int i = 0; i < nx; ++i)
+        if (patch_corner(n, k, cx + int64_t(qx[0] + i), cy + int64_t(qy[0] + j)) > 0.0) bits |= uint64_t(1) << uint(j * 8 + i);
+  } else {
+    // The lattice spans less than a weight texel a side (prefiltered_parts()), so its corners'
+    // weights blend 3 x 3 weight texels, fetched once, and each column's and row's cell and
+    // fraction are worked out once: weight_at() of every corner, the same operations on the
+    // same texels.
+    const int layer = P.materials[n].weight_layer;
+    const int64_t x0_fp = (cx + int64_t(qx[0])) * ps + ps / 2, y0_fp = (cy + int64_t(qy[0])) * ps + ps / 2;
+    int cell_x, cell_y, c0, c1;
+    float f;
+    weight_axis(x0_fp, P.weight_width, cell_x, c0, c1, f);
+    weight_axis(y0_fp, P.weight_height, cell_y, c0, c1, f);
+    const ivec3 tx = clamp(ivec3(cell_x) + ivec3(0, 1, 2), ivec3(0), ivec3(P.weight_width - 1));
+    const ivec3 ty = clamp(ivec3(cell_y) + ivec3(0, 1, 2), ivec3(0), ivec3(P.weight_height - 1));
+    const vec3 row0 = vec3(weight_texel(layer, tx.x, ty.x), weight_texel(layer, tx.y, ty.x), weight_texel(layer, tx.z, ty.x));
+    const vec3 row1 = vec3(weight_texel(layer, tx.x, ty.y), weight_texel(layer, tx.y, ty.y), weight_texel(layer, tx.z, ty.y));
+    const vec3 row2 = vec3(weight_texel(layer, tx.x, ty.z), weight_texel(layer, tx.y, ty.z), weight_texel(layer, tx.z, ty.z));
+    float col_f[8];
+    uint col_next = 0u;  // bit i: column i lies in the cell after cell_x
+    for (int i = 0; i < nx; ++i) {
+      int cell;
+      weight_axis(x0_fp + int64_t(i) * ps, P.weight_width, cell, c0, c1, col_f[i]);
+      if (cell != cell_x) col_next |= 1u << uint(i);
+    }
+    for (int j = 0; j < ny; ++j) {
+      int cell;
+      float fy;
+      weight_axis(y0_fp + int64_t(j) * ps, P.weight_height, cell, c0, c1, fy);
+      const bool next_row = cell != cell_y;
+      const vec3 top = next_row ? row1 : row0, bottom = next_row ? row2 : row1;
+      for (int i = 0; i < nx; ++i) {
+        const bool next = ((col_next >> uint(i)) & 1u) != 0u;
+        const float w00 = next ? top.y : top.x, w10 = next ? top.z : top.y;
+        const float w01 = next ? bottom.y : bottom.x, w11 = next ? bottom.z : bottom.y;
+        const float w = clamp01(mix(mix(w00, w10, col_f[i]), mix(w01, w11, col_f[i]), fy));
+        if (patch_mask(n, k, cx + int64_t(qx[0] + i), cy + int64_t(qy[0] + j), w)) bits |= uint64_t(1) << uint(j * 8 + i);
+      }
+    }
+  }
   float s1 = 0.0, s2 = 0.0;
   for (int j = 0; j < kk; ++j)
     for (int i = 0; i < kk; ++i) {
@@ -658,7 +714,7 @@ float fbpb_exact(int n, int64_t gx, int64_t gy, float plain, bool with_dpt, floa
 // `prefiltered`: mips >= 1 of the prefiltered strategy (reference_compositor.cpp).
 vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_mask, bool prefiltered) {
   footprint = (isnan(footprint) || isinf(footprint)) ? 1.0 : max(footprint, 1.0 / 256.0);
-  prefiltered = k_compose_prefiltered && prefiltered;
+  prefiltered = k_compose_only_prefiltered || (k_compose_prefiltered && prefiltered);
   float wts[TVT_MAX_MATERIALS];
   for (int n = 0; n < P.material_count; ++n)
     wts[n] = (material_mask & (1u << uint(n))) != 0u ? weight_at(P.materials[n].weight_layer, x_fp, y_fp) : 0.0;

@@ -312,6 +312,9 @@ TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureFadeWithTheFootprint)
   p.prefiltered = 1;
   p.prefilter_patch_lo = 0.5f;
   p.prefilter_patch_hi = 2.0f;
+  p.log2_vt = 20;  // a weight texel every 2048 level-0 texels: every sample lattice below is narrower
+  p.weight_width = 512;
+  p.weight_height = 512;
   gpu::TvtMaterial& dpt = p.materials[1];
   dpt.mode = gpu::TVT_MODE_DPT;
   dpt.resolution = 256;
@@ -351,11 +354,20 @@ TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureFadeWithTheFootprint)
   // lower end: the shader's ratio is exact at power-of-two footprints and its ramp is exactly 1
   // and 0 there, so the expectation (and its samples) and the point value are left out.
   EXPECT_EQ(prefiltered_parts(p, 5), TVT_PART_DPT_POINT | TVT_PART_FEATURE_EXPECT);
-  EXPECT_EQ(prefiltered_parts(p, 6), TVT_PART_ALL & ~TVT_PART_FEATURES);
+  EXPECT_EQ(prefiltered_parts(p, 6), TVT_PART_ALL & ~TVT_PART_FEATURES & ~TVT_PART_DPT_SAMPLES_WIDE);
   EXPECT_EQ(prefiltered_parts(p, 7), TVT_PART_DPT_EXPECT | TVT_PART_DPT_SAMPLES | TVT_PART_FEATURE_EXPECT);
   // Footprint 256: four patches a side, in expectation from samples; 1024: 16, expectation alone.
   EXPECT_EQ(prefiltered_parts(p, 8), TVT_PART_DPT_EXPECT | TVT_PART_DPT_SAMPLES | TVT_PART_FEATURE_EXPECT);
   EXPECT_EQ(prefiltered_parts(p, 10), TVT_PART_DPT_EXPECT | TVT_PART_FEATURE_EXPECT);
+  // The samples' corner lattice spans the footprint and a patch either side: 256 + 128 level-0
+  // texels at footprint 256. A weight texel every 256 texels (4096 a side) is not enough
+  // margin, every 512 is; no weights (parameters not from pack_scene) keep the wide path.
+  for (const int size : {4096, 2048, 0}) {
+    p.weight_width = size;
+    EXPECT_EQ(prefiltered_parts(p, 8) & TVT_PART_DPT_SAMPLES_WIDE, size == 2048 ? 0u : TVT_PART_DPT_SAMPLES_WIDE) << size;
+    EXPECT_EQ(prefiltered_parts(p, 5) & TVT_PART_DPT_SAMPLES_WIDE, 0u) << size;  // no samples at footprint 32
+  }
+  p.weight_width = 512;
   // FBPB features that have faded out before the finest texture level: never in expectation.
   fbpb.fbpb_fade_lo = -2.0f;
   fbpb.fbpb_fade_hi = -1.0f;

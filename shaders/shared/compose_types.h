@@ -36,12 +36,19 @@ TVT_CONST int TVT_MODE_FBPB_DPT = 4;  // FBPB features over a DPT-shaped non-fea
 // and hex tiles of fewer than 2^22 texels; the composer checks the scene): the 64-bit
 // divisions they otherwise keep for far terrain are left out.
 #define TVT_COMPOSE_SPEC_SMALL 20
+// Every page of the dispatch is a prefiltered one (a mip >= 1 under the prefiltered strategy;
+// implies TVT_COMPOSE_SPEC_PREFILTERED): the direct paths, which such a page never takes but a
+// device that runs both sides of a branch would pay for, are left out.
+#define TVT_COMPOSE_SPEC_ONLY_PREFILTERED 21
 TVT_CONST uint TVT_PART_DPT_POINT = 1u;        // a DPT layer's point value (exact share > 0)
 TVT_CONST uint TVT_PART_DPT_EXPECT = 2u;       // a DPT layer's expectation (exact share < 1)
 TVT_CONST uint TVT_PART_DPT_SAMPLES = 4u;      // ... from samples (fewer than _HI patches a side)
 TVT_CONST uint TVT_PART_FEATURES = 8u;         // FBPB's exact features (fade > 0)
 TVT_CONST uint TVT_PART_FEATURE_EXPECT = 16u;  // FBPB's features in expectation (fade0 > 0)
-TVT_CONST uint TVT_PART_ALL = 31u;
+// ... samples whose corner lattice may span a weight texel or more a side (else its corners'
+// weights come from 3 x 3 weight texels fetched once per lattice).
+TVT_CONST uint TVT_PART_DPT_SAMPLES_WIDE = 32u;
+TVT_CONST uint TVT_PART_ALL = 63u;
 
 // A material's texel words (texel_offset): its mip chain, level l = 0 .. log2 R of
 // (R >> l)^2 RGBA8 texels, each level l >= 1 followed by its spread chain, then the statistics
