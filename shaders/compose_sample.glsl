@@ -96,10 +96,6 @@ float spread_variance(vec4 spread) {
   return spread.y * spread.y + (spread.x * spread.z * spread.z + (1.0 - spread.x) * spread.w * spread.w) / 3.0;
 }
 
-// Bilinear weight at a terrain position, clamped at the terrain edge. The position becomes a
-// float only after clamping, as a fraction of the terrain: its rounding (2^-24 of the terrain,
-// at most 2^-11 of a weight texel for grids up to 8192) is far below what the smooth weight
-// fields resolve, and it keeps the hot path in 32-bit arithmetic.
 // One axis of weight_at(): the grid cell (unclamped) whose texels a bilinear fetch of a
 // `size`-texel axis blends at c_fp, the pair it reads and the fraction towards the second.
 void weight_axis(int64_t c_fp, int size, out int cell, out int c0, out int c1, out float f) {
@@ -116,6 +112,10 @@ void weight_axis(int64_t c_fp, int size, out int cell, out int c0, out int c1, o
 
 float weight_texel(int layer, int x, int y) { return weights[(layer * P.weight_height + y) * P.weight_width + x]; }
 
+// Bilinear weight at a terrain position, clamped at the terrain edge. The position becomes a
+// float only after clamping, as a fraction of the terrain: its rounding (2^-24 of the terrain,
+// at most 2^-11 of a weight texel for grids up to 8192) is far below what the smooth weight
+// fields resolve, and it keeps the hot path in 32-bit arithmetic.
 float weight_at(int layer, int64_t x_fp, int64_t y_fp) {
   int cell, x0, x1, y0, y1;
   float fx, fy;
