@@ -682,6 +682,7 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
         double w_feature =
             visible_p * ((1.0 - q_plain) * std::min(double(m.cm) * std::max(plain, local.soft), 1.0) + q_plain * w_chip);
         double chip_feature = visible_p * q_plain * w_chip;
+        double chip_share = visible_p * q_plain;  // the footprint's feature texels that are chipped
         // While few features fall in the footprint, their own decisions: the mean w of the
         // features under k x k points spread over it (k = 1 while a feature spans it, up to 4
         // where 16 do), faded to the expectation as more fall in (docs/composition.md).
@@ -690,7 +691,7 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
         if (e > 0.0) {
           const int k = 1 << std::clamp(int(std::ceil(rel)) + 1, 0, 2);
           const int64_t step = std::max<int64_t>(1, std::llround(std::exp2(lod) / k));
-          double decided = 0.0, chipped = 0.0;
+          double decided = 0.0, chipped = 0.0, chipped_share = 0.0;
           int hits = 0;
           for (int j = 0; j < k; ++j)
             for (int i = 0; i < k; ++i) {
@@ -701,18 +702,21 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
               const double wc = std::min((with_dpt ? nf_chip : ft.p) * double(m.cn), 1.0);
               decided += ft.visible ? (1.0 - qf) * std::min(double(m.cm) * std::max(ft.p, local.soft), 1.0) + qf * wc : 0.0;
               chipped += qf * wc;
+              chipped_share += qf;
               ++hits;
             }
           if (hits > 0) {
             w_feature = e * decided / hits + (1.0 - e) * w_feature;
             chip_feature = e * chipped / hits + (1.0 - e) * chip_feature;
+            chip_share = e * chipped_share / hits + (1.0 - e) * chip_share;
           }
         }
         const double w_ground = std::min(nf_ground * double(m.cn), 1.0);
         const double expected = local.fraction * w_feature + (1.0 - local.fraction) * w_ground;
         fallback = fade0 * expected + (1.0 - fade0) * fallback;
-        // The chipped texels' share of the fallback shows darkened.
-        const double chip_b = fade0 * local.fraction * chip_feature;
+        // The chipped texels' share of the fallback shows darkened: level 0 darkens a chipped
+        // texel's colour, so its plain share (1 - fade0) too.
+        const double chip_b = local.fraction * (fade0 * chip_feature + (1.0 - fade0) * plain_fallback * chip_share);
         if (fallback > 0.0)
           colour = glm::dvec4(glm::dvec3(colour) * (1.0 - (1.0 - double(m.colour_coeff)) * std::min(chip_b / fallback, 1.0)),
                               colour.a);
@@ -733,7 +737,7 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
           const int log2k = std::countr_zero(unsigned(k));
           // Half the points' spacing, footprint / 2k, in fixed point; the points at odd multiples of it.
           const int64_t half_step = std::llround(std::ldexp(footprint, gpu::TVT_FIXED_BITS - 1 - log2k));
-          glm::dvec4 weighted(0.0);
+          glm::dvec4 weighted(0.0), points_colour(0.0);
           int shown = 0;
           for (int j = 0; j < k; ++j)
             for (int i = 0; i < k; ++i) {
@@ -749,14 +753,16 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
               const double wi = c.fbpb_exact(m, pgx, pgy, plain, with_dpt, ground, pc, shows);
               w += wi;
               weighted += wi * pc;
+              points_colour += pc;
               shown += shows ? 1 : 0;
             }
           visible = 2 * shown >= k * k;  // half the points
-          // The points' mean, faded as level 0 fades them, and the colour that makes the blend
-          // below that mean plus the expectation's share.
+          // The points' mean, faded as level 0 fades them (its plain share in each point's own
+          // colour, darkened where chipped), and the colour that makes the blend below that mean
+          // plus the expectation's share.
           const double per_point = 1.0 / double(k * k);
           w = fade0 * per_point * w + (1.0 - fade0) * plain_fallback;
-          weighted = fade0 * per_point * weighted + (1.0 - fade0) * plain_fallback * colour;
+          weighted = per_point * (fade0 * weighted + (1.0 - fade0) * plain_fallback * points_colour);
           const double b_mix = fade * w + (1.0 - fade) * fallback;
           if (b_mix > 0.0) colour = (fade * weighted + (1.0 - fade) * fallback * colour) / b_mix;
         }

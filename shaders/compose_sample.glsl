@@ -807,12 +807,13 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
         const float visible_p = min(plain * P.materials[n].cf, 1.0);
         float w_feature = visible_p * mix(min(P.materials[n].cm * max(plain, df.y), 1.0), w_chip, q_plain);
         float chip_feature = visible_p * q_plain * w_chip;
+        float chip_share = visible_p * q_plain;  // the footprint's feature texels that are chipped
         const float rel = lod - material_stat(n, TVT_STATS_FEATURE_LOG2_SIZE);
         const float e = 1.0 - ramp(rel, 2.0, 3.0);
         if (e > 0.0) {
           const int k = 1 << clamp(int(ceil(rel)) + 1, 0, 2);
           const int64_t step = int64_t(max(1.0, round(exp2(lod) / float(k))));
-          float decided = 0.0, chipped = 0.0;
+          float decided = 0.0, chipped = 0.0, chipped_share = 0.0;
           int hits = 0;
           for (int j = 0; j < k; ++j)
             for (int i = 0; i < k; ++i) {
@@ -825,18 +826,21 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
               const float wc = min((with_dpt ? nf_chip : fp) * P.materials[n].cn, 1.0);
               decided += fvisible ? mix(min(P.materials[n].cm * max(fp, df.y), 1.0), wc, qf) : 0.0;
               chipped += qf * wc;
+              chipped_share += qf;
               ++hits;
             }
           if (hits > 0) {
             w_feature = e * decided / float(hits) + (1.0 - e) * w_feature;
             chip_feature = e * chipped / float(hits) + (1.0 - e) * chip_feature;
+            chip_share = e * chipped_share / float(hits) + (1.0 - e) * chip_share;
           }
         }
         const float w_ground = min(nf_ground * P.materials[n].cn, 1.0);
         const float expected = df.x * w_feature + (1.0 - df.x) * w_ground;
         fallback = fade0 * expected + (1.0 - fade0) * fallback;
-        // The chipped texels' share of the fallback shows darkened.
-        const float chip_b = fade0 * df.x * chip_feature;
+        // The chipped texels' share of the fallback shows darkened: level 0 darkens a chipped
+        // texel's colour, so its plain share (1 - fade0) too.
+        const float chip_b = df.x * (fade0 * chip_feature + (1.0 - fade0) * plain_fallback * chip_share);
         if (fallback > 0.0) colour.rgb *= 1.0 - (1.0 - P.materials[n].colour_coeff) * min(chip_b / fallback, 1.0);
         feature_shift = (1.0 - fade) * fade0 * (w_feature - w_ground);
       }
@@ -854,7 +858,7 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
         const int64_t mask = int64_t(P.materials[n].resolution - 1);
         const int64_t rx = x_fp * int64_t(P.materials[n].resolution) - gx * P.materials[n].period_fp;
         const int64_t ry = y_fp * int64_t(P.materials[n].resolution) - gy * P.materials[n].period_fp;
-        vec4 weighted = vec4(0.0);
+        vec4 weighted = vec4(0.0), points_colour = vec4(0.0);
         int shown = 0;
         for (int j = 0; j < kk; ++j)
           for (int i = 0; i < kk; ++i) {
@@ -873,16 +877,18 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
             const float wi = fbpb_exact(n, px, py, plain, with_dpt, clamp01(non_feature + ground_slope * (c.a - colour.a)), c, v);
             w += wi;
             weighted += wi * c;
+            points_colour += c;
             shown += v ? 1 : 0;
             if (!prefiltered) colour = c;  // darkened in a chipped hole
           }
         visible = 2 * shown >= kk * kk;  // direct: the sample's feature; prefiltered: half the points
         if (prefiltered) {
-          // The points' mean, faded as level 0 fades them, and the colour that makes
-          // mix(result, colour, b) that mean plus the expectation's share.
+          // The points' mean, faded as level 0 fades them (its plain share in each point's own
+          // colour, darkened where chipped), and the colour that makes mix(result, colour, b)
+          // that mean plus the expectation's share.
           const float per_point = 1.0 / float(kk * kk);
           w = fade0 * per_point * w + (1.0 - fade0) * plain_fallback;
-          weighted = fade0 * per_point * weighted + (1.0 - fade0) * plain_fallback * colour;
+          weighted = per_point * (fade0 * weighted + (1.0 - fade0) * plain_fallback * points_colour);
           const float b_mix = fade * w + (1.0 - fade) * fallback;
           if (b_mix > 0.0) colour = (fade * weighted + (1.0 - fade) * fallback * colour) / b_mix;
         }

@@ -716,24 +716,35 @@ TEST(Prefiltered, ChippedHolesAreInTheFeatureExpectation) {
   a.desc.materials[1].fbpb.variation_threshold = 0.6;
   a.desc.materials[1].fbpb.cm = 4.0;
   a.desc.materials[1].fbpb.cn = 0.0;
-  SceneAssets unchipped = a;
-  unchipped.desc.materials[1].fbpb.variation_threshold = 0.0;
-  const PackedScene direct = pack(a), pre = pack(a, prefiltered_options()), plain_truth = pack(unchipped);
-  for (const uint32_t mip : {3u, 4u}) {  // past the points (fade ends at LOD 1, points to LOD 2)
-    double err = 0, chipping = 0;
-    const int64_t n = 24, step = (int64_t(1) << (10 - mip)) / n;
-    for (int64_t y = 0; y < n; ++y)
-      for (int64_t x = 0; x < n; ++x) {
-        const glm::dvec4 truth = ground_truth_texel(direct, mip, x * step + 1, y * step + 1);
-        const glm::dvec4 got = compose_texel_reference(pre, mip, x * step + 1, y * step + 1);
-        const glm::dvec4 whole = ground_truth_texel(plain_truth, mip, x * step + 1, y * step + 1);
-        for (int c = 0; c < 3; ++c) {
-          err += std::abs(got[c] - truth[c]) / (3 * n * n);
-          chipping += std::abs(whole[c] - truth[c]) / (3 * n * n);
+  // Level 0 before the FBPB fade (fade0 = 1), and half-way through it (fade0 = 0.5: level 0
+  // blends half the plain weight, in the chipped texels' darkened colour as well; darker holes
+  // there, Cc = 0.25, so that this share matters).
+  for (const double fade_lo : {0.0, -0.5}) {
+    a.desc.materials[1].fbpb.fade_lod_lo = fade_lo;
+    a.desc.materials[1].fbpb.fade_lod_hi = fade_lo + 1.0;
+    a.desc.materials[1].fbpb.colour_coeff = fade_lo == 0.0 ? 0.75 : 0.25;
+    SceneAssets unchipped = a;
+    unchipped.desc.materials[1].fbpb.variation_threshold = 0.0;
+    const PackedScene direct = pack(a), pre = pack(a, prefiltered_options()), plain_truth = pack(unchipped);
+    for (const uint32_t mip : {3u, 4u}) {  // past the points (fade ends by LOD 1, points to LOD 2)
+      double err = 0, chipping = 0;
+      const int64_t n = 24, step = (int64_t(1) << (10 - mip)) / n;
+      for (int64_t y = 0; y < n; ++y)
+        for (int64_t x = 0; x < n; ++x) {
+          const glm::dvec4 truth = ground_truth_texel(direct, mip, x * step + 1, y * step + 1);
+          const glm::dvec4 got = compose_texel_reference(pre, mip, x * step + 1, y * step + 1);
+          const glm::dvec4 whole = ground_truth_texel(plain_truth, mip, x * step + 1, y * step + 1);
+          for (int c = 0; c < 3; ++c) {
+            err += std::abs(got[c] - truth[c]) / (3 * n * n);
+            chipping += std::abs(whole[c] - truth[c]) / (3 * n * n);
+          }
         }
-      }
-    EXPECT_GT(chipping, 0.04) << "mip " << mip;  // the holes change the truth
-    EXPECT_LT(err, 0.25 * chipping) << "mip " << mip;  // and the expectation follows them
+      // The holes change the truth (half as much where level 0 blends half the plain weight).
+      EXPECT_GT(chipping, fade_lo == 0.0 ? 0.04 : 0.015) << "fade from LOD " << fade_lo << ", mip " << mip;
+      // And the expectation follows them: 0.11-0.12 of their effect either way. Half-way through
+      // the fade, with the plain share of the chipped texels left undarkened, it was 0.22.
+      EXPECT_LT(err, 0.16 * chipping) << "fade from LOD " << fade_lo << ", mip " << mip;
+    }
   }
 }
 
@@ -782,6 +793,27 @@ TEST(Prefiltered, FeaturesAtPointsAreTheBoxFilterOfLevel0AtMip1) {
       for (int c = 0; c < 3; ++c) err += std::abs(got[c] - truth[c]) / (3 * 32 * 32);
     }
   EXPECT_LT(err, 0.01);
+}
+
+// The same with level 0 half-way through the FBPB fade (fade0 = 0.5): level 0 blends each
+// texel with half its feature weight and half the plain blend map, in the texel's own colour,
+// darkened in a chipped hole; the points' plain share takes each point's colour, so the
+// prefiltered texel at mip 1 is still the box filter of level 0 (A is uniform here, so the
+// plain blend map is the same at every texel).
+TEST(Prefiltered, FeaturesAtPointsFollowLevel0HalfWayThroughTheFade) {
+  SceneAssets a = big_feature_scene(0.5f);
+  a.desc.materials[1].fbpb.fade_lod_lo = -0.5;
+  a.desc.materials[1].fbpb.fade_lod_hi = 0.5;
+  // Chipped holes: fine-grained variation, a third of each visible feature's texels chipped,
+  // shown as ground (cn = 0) in half their colour.
+  MetaTexture& meta = a.materials->edit(1).meta.value();
+  for (int y = 0; y < 64; ++y)
+    for (int x = 0; x < 64; ++x) meta.texels[size_t(y) * 64 + size_t(x)].variation = uint8_t(gpu::tvt_hash_coord(x, y, 5u) & 0xffu);
+  a.desc.materials[1].fbpb.variation_threshold = 0.33;
+  a.desc.materials[1].fbpb.cn = 0.0;
+  a.desc.materials[1].fbpb.colour_coeff = 0.5;
+  const PackedScene direct = pack(a), pre = pack(a, prefiltered_options());
+  EXPECT_GT(box_filter_texels(direct, pre, 1, 64, {7, 3}, {5, 1}), 20);
 }
 
 // Features smaller than the footprint under FBPB+DPT: 4 x 4 points (tvt_feature_points: the
