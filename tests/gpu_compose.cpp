@@ -265,21 +265,11 @@ TEST_F(GpuCompose, SpecialisedPipelinesChangeNoByte) {
 // points' plain share in each point's own colour and the expectation's darkened plain share,
 // on the GPU as in the reference, at the points' mips (1-2) and the expectation's (3-4).
 TEST_F(GpuCompose, PrefilteredFeaturesHalfWayThroughLevel0sFadeMatchReference) {
-  SceneAssets a = test::make_synthetic_assets({{{200, 0, 0, 100}, 0.f, Mode::BlendMap}, {{0, 40, 200, 128}, 0.5f, Mode::Fbpb, 64}});
-  MetaTexture meta = test::square_feature_meta(64, 32, 32, 32);
+  SceneAssets a = test::big_feature_scene(0.5f);
+  MetaTexture& meta = a.materials->edit(1).meta.value();
   for (int y = 0; y < 64; ++y)
     for (int x = 0; x < 64; ++x) meta.texels[size_t(y) * 64 + size_t(x)].variation = uint8_t(gpu::tvt_hash_coord(x, y, 5u) & 0xffu);
-  ImageRGBA8 albedo(64, 64);
-  for (int y = 0; y < 64; ++y)
-    for (int x = 0; x < 64; ++x) {
-      uint8_t* t = albedo.at(x, y);
-      const bool feature = meta.at(x, y).d != 0;
-      t[0] = 0, t[1] = feature ? 200 : 40, t[2] = feature ? 0 : 200, t[3] = 128;
-    }
-  a.materials->edit(1).albedo = build_mip_chain(albedo);
-  a.materials->edit(1).meta = std::move(meta);
   MaterialDesc& m = a.desc.materials[1];
-  m.has_fbpb = true;
   m.fbpb.fade_lod_lo = -0.5;
   m.fbpb.fade_lod_hi = 0.5;
   m.fbpb.variation_threshold = 0.33;

@@ -527,36 +527,11 @@ TEST(Prefiltered, ExtremesAreDefinedAndMonotoneInP) {
         }
 }
 
-namespace {
-
-// An FBPB material of 64 texels a tile (period 64 level-0 texels: material LOD = mip) with one
-// 33 x 33 square feature a tile, feature texels (0, 200, 0) and ground (0, 40, 200); features
-// exact up to material LOD 1, their expectation from LOD 2.
-SceneAssets big_feature_scene(float p) {
-  auto a = test::make_synthetic_assets({k_base, {{0, 40, 200, 128}, p, Mode::Fbpb, 64}});
-  MetaTexture meta = test::square_feature_meta(64, 32, 32, 32);
-  ImageRGBA8 albedo(64, 64);
-  for (int y = 0; y < 64; ++y)
-    for (int x = 0; x < 64; ++x) {
-      uint8_t* t = albedo.at(x, y);
-      const bool feature = meta.at(x, y).d != 0;
-      t[0] = 0, t[1] = feature ? 200 : 40, t[2] = feature ? 0 : 200, t[3] = 128;
-    }
-  a.materials->edit(1).albedo = build_mip_chain(albedo);
-  a.materials->edit(1).meta = std::move(meta);
-  a.desc.materials[1].has_fbpb = true;
-  a.desc.materials[1].fbpb.fade_lod_lo = 0.0;
-  a.desc.materials[1].fbpb.fade_lod_hi = 1.0;
-  return a;
-}
-
-}  // namespace
-
 // The meta block's feature statistics chain: every level-l texel holds the feature fraction,
 // the mean f of its feature texels and D (feature colour mean - colour mean) of the level-0
 // texels under it, to the words' rounding.
 TEST(Prefiltered, FeatureChainHoldsEachBlocksFractionAndColourMoment) {
-  const SceneAssets a = big_feature_scene(0.5f);
+  const SceneAssets a = test::big_feature_scene(0.5f);
   const std::shared_ptr<const MaterialAssets> held = a.materials->get(1).value();
   const MaterialAssets& m = *held;
   const MaterialWords w = pack_material(m);
@@ -670,7 +645,7 @@ TEST(Prefiltered, SpreadChainHoldsEachBlocksTwoPiecesOfA) {
 // feature fraction and colour), not the texture's mean feature fraction, so it lands near the
 // box filter of level 0 inside features, on the ground between them and across their edges.
 TEST(Prefiltered, FeaturesFollowWhatTheFootprintHolds) {
-  const SceneAssets a = big_feature_scene(0.5f);
+  const SceneAssets a = test::big_feature_scene(0.5f);
   const PackedScene direct = pack(a), pre = pack(a, prefiltered_options());
   for (const uint32_t mip : {2u, 3u, 4u}) {
     double err = 0, worst = 0, lowest = 1, highest = 0;
@@ -695,7 +670,7 @@ TEST(Prefiltered, FeaturesFollowWhatTheFootprintHolds) {
 // variation map's distribution, and a prefiltered texel past the points takes the chipped share
 // of each visible feature as ground, darkened, as level 0 does texel by texel.
 TEST(Prefiltered, ChippedHolesAreInTheFeatureExpectation) {
-  SceneAssets a = big_feature_scene(0.5f);
+  SceneAssets a = test::big_feature_scene(0.5f);
   {
     MetaTexture& meta = a.materials->edit(1).meta.value();
     for (int y = 0; y < 64; ++y)
@@ -782,7 +757,7 @@ int box_filter_texels(const PackedScene& direct, const PackedScene& pre, uint32_
 // a constant weight the prefiltered texel is the box filter of level 0 itself: stone edges,
 // chipped holes and each stone's own decision included. At mip 2 it stays close.
 TEST(Prefiltered, FeaturesAtPointsAreTheBoxFilterOfLevel0AtMip1) {
-  const SceneAssets a = big_feature_scene(0.5f);
+  const SceneAssets a = test::big_feature_scene(0.5f);
   const PackedScene direct = pack(a), pre = pack(a, prefiltered_options());
   EXPECT_GT(box_filter_texels(direct, pre, 1, 64, {7, 3}, {5, 1}), 20);  // the box filter differs from a point sample on many of them
   double err = 0;
@@ -801,7 +776,7 @@ TEST(Prefiltered, FeaturesAtPointsAreTheBoxFilterOfLevel0AtMip1) {
 // prefiltered texel at mip 1 is still the box filter of level 0 (A is uniform here, so the
 // plain blend map is the same at every texel).
 TEST(Prefiltered, FeaturesAtPointsFollowLevel0HalfWayThroughTheFade) {
-  SceneAssets a = big_feature_scene(0.5f);
+  SceneAssets a = test::big_feature_scene(0.5f);
   a.desc.materials[1].fbpb.fade_lod_lo = -0.5;
   a.desc.materials[1].fbpb.fade_lod_hi = 0.5;
   // Chipped holes: fine-grained variation, a third of each visible feature's texels chipped,

@@ -39,6 +39,24 @@ SceneAssets make_synthetic_assets(const std::vector<SyntheticMaterial>& material
   return a;
 }
 
+SceneAssets big_feature_scene(float p) {
+  SceneAssets a = make_synthetic_assets({{{200, 0, 0, 100}, 0.f, Mode::BlendMap}, {{0, 40, 200, 128}, p, Mode::Fbpb, 64}});
+  MetaTexture meta = square_feature_meta(64, 32, 32, 32);
+  ImageRGBA8 albedo(64, 64);
+  for (int y = 0; y < 64; ++y)
+    for (int x = 0; x < 64; ++x) {
+      uint8_t* t = albedo.at(x, y);
+      const bool feature = meta.at(x, y).d != 0;
+      t[0] = 0, t[1] = feature ? 200 : 40, t[2] = feature ? 0 : 200, t[3] = 128;
+    }
+  a.materials->edit(1).albedo = build_mip_chain(albedo);
+  a.materials->edit(1).meta = std::move(meta);
+  a.desc.materials[1].has_fbpb = true;
+  a.desc.materials[1].fbpb.fade_lod_lo = 0.0;
+  a.desc.materials[1].fbpb.fade_lod_hi = 1.0;
+  return a;
+}
+
 void set_weight(SceneAssets& a, int layer, float value) {
   std::fill_n(a.weights.data.begin() + long(layer) * 16, 16, value);
 }

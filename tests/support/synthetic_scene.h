@@ -24,6 +24,12 @@ SceneAssets make_synthetic_assets(const std::vector<SyntheticMaterial>& material
 // wrapping on the torus; f = 200 inside, 0 outside; variation = `variation` everywhere.
 MetaTexture square_feature_meta(int resolution, int cx, int cy, int side, uint8_t variation = 255);
 
+// A blend-map base (200, 0, 0, 100) under an FBPB material of weight p, 64 texels a tile
+// (period 64 level-0 texels: material LOD = mip), with one 33 x 33 square feature a tile
+// (square_feature_meta), feature texels (0, 200, 0) and ground (0, 40, 200), A = 128
+// everywhere; features exact up to material LOD 1, their expectation from LOD 2.
+SceneAssets big_feature_scene(float p);
+
 // Sets every weight-grid texel of `layer` to `value`.
 void set_weight(SceneAssets& assets, int layer, float value);
 
