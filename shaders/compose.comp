@@ -43,8 +43,8 @@ void main() {
   // which prefiltered parts a mip's pages reach (prefiltered_parts()).
   const int log2_s = findMSB(int(s));
   const float footprint = s == (int64_t(1) << log2_s) ? ldexp(1.0, mip - log2_s) : exp2(float(mip)) / float(s);
-  // Mip 0 is direct under every strategy; a variant made for prefiltered pages alone knows.
-  const bool prefiltered = k_compose_only_prefiltered || (k_compose_prefiltered && P.prefiltered != 0 && mip > 0);
+  // Mip 0 is direct under every strategy (compose_sample() applies the variant's constants).
+  const bool prefiltered = P.prefiltered != 0 && mip > 0;
   vec4 sum = vec4(0.0);
   for (int64_t sy = 0; sy < s; ++sy)
     for (int64_t sx = 0; sx < s; ++sx) {

@@ -517,6 +517,56 @@ float patch_value(int n, int k, int64_t x_fp, int64_t y_fp) {
                      patch_corner(n, k, ix + 1, iy + 1), fx, fy);
 }
 
+// The patch masks of the nx x ny corners from (jx, jy) (at most 8 x 8), bit j * 8 + i for
+// corner (jx + i, jy + j): patch_corner() of each.
+uint64_t lattice_masks(int n, int k, int64_t jx, int64_t jy, int nx, int ny) {
+  uint64_t bits = 0ul;
+  if (part(TVT_PART_DPT_SAMPLES_WIDE)) {
+    for (int j = 0; j < ny; ++j)
+      for (int i = 0; i < nx; ++i)
+        if (patch_corner(n, k, jx + int64_t(i), jy + int64_t(j)) > 0.0) bits |= uint64_t(1) << uint(j * 8 + i);
+    return bits;
+  }
+  // The lattice spans less than a weight texel a side (prefiltered_parts()), so its corners'
+  // weights blend 3 x 3 weight texels, fetched once, and each column's and row's cell and
+  // fraction are worked out once: weight_at() of every corner, the same operations on the same
+  // texels.
+  const int64_t ps = P.materials[n].dpt[k].patch_fp;
+  const int layer = P.materials[n].weight_layer;
+  const int64_t x0_fp = jx * ps + ps / 2, y0_fp = jy * ps + ps / 2;
+  int cell_x, cell_y, c0, c1;
+  float f;
+  weight_axis(x0_fp, P.weight_width, cell_x, c0, c1, f);
+  weight_axis(y0_fp, P.weight_height, cell_y, c0, c1, f);
+  const ivec3 tx = clamp(ivec3(cell_x) + ivec3(0, 1, 2), ivec3(0), ivec3(P.weight_width - 1));
+  const ivec3 ty = clamp(ivec3(cell_y) + ivec3(0, 1, 2), ivec3(0), ivec3(P.weight_height - 1));
+  const vec3 row0 = vec3(weight_texel(layer, tx.x, ty.x), weight_texel(layer, tx.y, ty.x), weight_texel(layer, tx.z, ty.x));
+  const vec3 row1 = vec3(weight_texel(layer, tx.x, ty.y), weight_texel(layer, tx.y, ty.y), weight_texel(layer, tx.z, ty.y));
+  const vec3 row2 = vec3(weight_texel(layer, tx.x, ty.z), weight_texel(layer, tx.y, ty.z), weight_texel(layer, tx.z, ty.z));
+  float col_f[8];
+  uint col_next = 0u;  // bit i: column i lies in the cell after cell_x
+  for (int i = 0; i < nx; ++i) {
+    int cell;
+    weight_axis(x0_fp + int64_t(i) * ps, P.weight_width, cell, c0, c1, col_f[i]);
+    if (cell != cell_x) col_next |= 1u << uint(i);
+  }
+  for (int j = 0; j < ny; ++j) {
+    int cell;
+    float fy;
+    weight_axis(y0_fp + int64_t(j) * ps, P.weight_height, cell, c0, c1, fy);
+    const bool next_row = cell != cell_y;
+    const vec3 top = next_row ? row1 : row0, bottom = next_row ? row2 : row1;
+    for (int i = 0; i < nx; ++i) {
+      const bool next = ((col_next >> uint(i)) & 1u) != 0u;
+      const float w00 = next ? top.y : top.x, w10 = next ? top.z : top.y;
+      const float w01 = next ? bottom.y : bottom.x, w11 = next ? bottom.z : bottom.y;
+      const float w = clamp01(mix(mix(w00, w10, col_f[i]), mix(w01, w11, col_f[i]), fy));
+      if (patch_mask(n, k, jx + int64_t(i), jy + int64_t(j), w)) bits |= uint64_t(1) << uint(j * 8 + i);
+    }
+  }
+  return bits;
+}
+
 // Prefiltered DPT: the layer's actual values at k x k points over the footprint while its
 // patches are few there (reference_compositor.cpp patch_samples). The points share corners,
 // so each corner's mask is decided once and every point reads its four: the same masks and
@@ -559,49 +609,7 @@ void patch_samples(int n, int k, int64_t x_fp, int64_t y_fp, float footprint, in
   // the reference does.
   const int nx = qx[kk - 1] - qx[0] + 2, ny = qy[kk - 1] - qy[0] + 2;
   if (nx > 8 || ny > 8) return;
-  uint64_t bits = 0ul;
-  if (part(TVT_PART_DPT_SAMPLES_WIDE)) {
-    for (int j = 0; j < ny; ++j)
-      for (int i = 0; i < nx; ++i)
-        if (patch_corner(n, k, cx + int64_t(qx[0] + i), cy + int64_t(qy[0] + j)) > 0.0) bits |= uint64_t(1) << uint(j * 8 + i);
-  } else {
-    // The lattice spans less than a weight texel a side (prefiltered_parts()), so its corners'
-    // weights blend 3 x 3 weight texels, fetched once, and each column's and row's cell and
-    // fraction are worked out once: weight_at() of every corner, the same operations on the
-    // same texels.
-    const int layer = P.materials[n].weight_layer;
-    const int64_t x0_fp = (cx + int64_t(qx[0])) * ps + ps / 2, y0_fp = (cy + int64_t(qy[0])) * ps + ps / 2;
-    int cell_x, cell_y, c0, c1;
-    float f;
-    weight_axis(x0_fp, P.weight_width, cell_x, c0, c1, f);
-    weight_axis(y0_fp, P.weight_height, cell_y, c0, c1, f);
-    const ivec3 tx = clamp(ivec3(cell_x) + ivec3(0, 1, 2), ivec3(0), ivec3(P.weight_width - 1));
-    const ivec3 ty = clamp(ivec3(cell_y) + ivec3(0, 1, 2), ivec3(0), ivec3(P.weight_height - 1));
-    const vec3 row0 = vec3(weight_texel(layer, tx.x, ty.x), weight_texel(layer, tx.y, ty.x), weight_texel(layer, tx.z, ty.x));
-    const vec3 row1 = vec3(weight_texel(layer, tx.x, ty.y), weight_texel(layer, tx.y, ty.y), weight_texel(layer, tx.z, ty.y));
-    const vec3 row2 = vec3(weight_texel(layer, tx.x, ty.z), weight_texel(layer, tx.y, ty.z), weight_texel(layer, tx.z, ty.z));
-    float col_f[8];
-    uint col_next = 0u;  // bit i: column i lies in the cell after cell_x
-    for (int i = 0; i < nx; ++i) {
-      int cell;
-      weight_axis(x0_fp + int64_t(i) * ps, P.weight_width, cell, c0, c1, col_f[i]);
-      if (cell != cell_x) col_next |= 1u << uint(i);
-    }
-    for (int j = 0; j < ny; ++j) {
-      int cell;
-      float fy;
-      weight_axis(y0_fp + int64_t(j) * ps, P.weight_height, cell, c0, c1, fy);
-      const bool next_row = cell != cell_y;
-      const vec3 top = next_row ? row1 : row0, bottom = next_row ? row2 : row1;
-      for (int i = 0; i < nx; ++i) {
-        const bool next = ((col_next >> uint(i)) & 1u) != 0u;
-        const float w00 = next ? top.y : top.x, w10 = next ? top.z : top.y;
-        const float w01 = next ? bottom.y : bottom.x, w11 = next ? bottom.z : bottom.y;
-        const float w = clamp01(mix(mix(w00, w10, col_f[i]), mix(w01, w11, col_f[i]), fy));
-        if (patch_mask(n, k, cx + int64_t(qx[0] + i), cy + int64_t(qy[0] + j), w)) bits |= uint64_t(1) << uint(j * 8 + i);
-      }
-    }
-  }
+  const uint64_t bits = lattice_masks(n, k, cx + int64_t(qx[0]), cy + int64_t(qy[0]), nx, ny);
   float s1 = 0.0, s2 = 0.0;
   for (int j = 0; j < kk; ++j)
     for (int i = 0; i < kk; ++i) {
@@ -714,6 +722,7 @@ float fbpb_exact(int n, int64_t gx, int64_t gy, float plain, bool with_dpt, floa
 // `prefiltered`: mips >= 1 of the prefiltered strategy (reference_compositor.cpp).
 vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_mask, bool prefiltered) {
   footprint = (isnan(footprint) || isinf(footprint)) ? 1.0 : max(footprint, 1.0 / 256.0);
+  // A variant made for prefiltered pages alone knows; one without the prefiltered maths too.
   prefiltered = k_compose_only_prefiltered || (k_compose_prefiltered && prefiltered);
   float wts[TVT_MAX_MATERIALS];
   for (int n = 0; n < P.material_count; ++n)
