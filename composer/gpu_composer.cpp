@@ -30,15 +30,31 @@ bool ramp_may_be_below_one(double v, double lo, double hi) {
 bool ramp_is_positive(float v, float lo, float hi) { return hi <= lo ? v >= lo : v > lo; }
 bool ramp_is_below_one(float v, float lo, float hi) { return hi <= lo ? v < lo : v < hi; }
 
-// patch_samples(): the corners of a layer's sample lattice span at most the footprint and a
-// patch on either side (and at most 7 patches). Below a weight texel's spacing a side, less a
-// margin far above the float rounding of weight_at()'s grid coordinate, they fall in two
-// adjacent weight cells a side, which the shader's narrow path assumes.
-bool sample_lattice_is_narrow(const gpu::TvtComposeParams& p, double footprint, double patch_texels) {
+// lattice_masks(): a lattice of patch corners spanning `span` level-0 texels a side. Below a
+// weight texel's spacing a side, less a margin far above the float rounding of weight_at()'s
+// grid coordinate, its corners fall in two adjacent weight cells a side, which the shader's
+// narrow path assumes.
+bool lattice_is_narrow(const gpu::TvtComposeParams& p, double span) {
   if (p.weight_width <= 0 || p.weight_height <= 0 || p.log2_vt < 0 || p.log2_vt > 62) return false;
-  const double span = std::min(footprint + 2.0 * patch_texels, 7.0 * patch_texels) + 1.0;  // + rounding of the offsets
   const double spacing = std::ldexp(1.0, p.log2_vt) / double(std::max(p.weight_width, p.weight_height));
   return span < spacing * (1.0 - 1.0 / 64.0);
+}
+
+// patch_samples(): the corners of a layer's sample lattice span at most the footprint and a
+// patch on either side (and at most 7 patches), + 1 for the rounding of the offsets.
+bool sample_lattice_is_narrow(const gpu::TvtComposeParams& p, double footprint, double patch_texels) {
+  return lattice_is_narrow(p, std::min(footprint + 2.0 * patch_texels, 7.0 * patch_texels) + 1.0);
+}
+
+// patch_value(): a patch cell's four corners, one patch apart.
+bool patch_cell_is_narrow(const gpu::TvtComposeParams& p, double patch_texels) {
+  return lattice_is_narrow(p, patch_texels + 1.0);
+}
+
+// A DPT layer the parameters can show at some footprint (its fade), of a material with DPT.
+bool dpt_layer_present(const gpu::TvtMaterial& m, int k) {
+  return (m.mode == gpu::TVT_MODE_DPT || m.mode == gpu::TVT_MODE_FBPB_DPT) &&
+         ramp_may_be_positive(m.dpt[k].patch_texels, m.dpt_fade_lo, m.dpt_fade_hi);
 }
 
 }  // namespace
@@ -75,24 +91,25 @@ uint32_t prefiltered_parts(const gpu::TvtComposeParams& p, uint32_t mip) {
     for (int k = 0; k < std::min(m.dpt_layer_count, gpu::TVT_MAX_DPT_LAYERS); ++k)
       finite = finite && std::isfinite(double(m.dpt[k].patch_texels));
     if (!finite) return gpu::TVT_PART_ALL;  // not a validated scene: keep every part
-    if (m.mode == gpu::TVT_MODE_DPT || m.mode == gpu::TVT_MODE_FBPB_DPT)
-      for (int k = 0; k < std::min(m.dpt_layer_count, gpu::TVT_MAX_DPT_LAYERS); ++k) {  // dpt()
-        const double texels = m.dpt[k].patch_texels;
-        if (!ramp_may_be_positive(texels, m.dpt_fade_lo, m.dpt_fade_hi)) continue;  // absent at every footprint
-        const float lo = p.prefilter_patch_lo, hi = p.prefilter_patch_hi;
-        const float ratio_f = exact_ratio ? std::ldexp(m.dpt[k].patch_texels, 1 - e) : 0.0f;
-        const double ratio = texels / footprint;
-        if (exact_ratio ? ramp_is_positive(ratio_f, lo, hi) : ramp_may_be_positive(ratio, lo, hi))
-          parts |= gpu::TVT_PART_DPT_POINT;
-        if (exact_ratio ? ramp_is_below_one(ratio_f, lo, hi) : ramp_may_be_below_one(ratio, lo, hi)) {
-          parts |= gpu::TVT_PART_DPT_EXPECT;
-          const double patches = footprint / std::max(texels, 1e-6);
-          if (ramp_may_be_below_one(patches, gpu::TVT_PATCH_SAMPLES_LO, gpu::TVT_PATCH_SAMPLES_HI)) {
-            parts |= gpu::TVT_PART_DPT_SAMPLES;
-            if (!sample_lattice_is_narrow(p, footprint, texels)) parts |= gpu::TVT_PART_DPT_SAMPLES_WIDE;
-          }
+    for (int k = 0; k < std::min(m.dpt_layer_count, gpu::TVT_MAX_DPT_LAYERS); ++k) {  // dpt()
+      if (!dpt_layer_present(m, k)) continue;
+      const double texels = m.dpt[k].patch_texels;
+      const float lo = p.prefilter_patch_lo, hi = p.prefilter_patch_hi;
+      const float ratio_f = exact_ratio ? std::ldexp(m.dpt[k].patch_texels, 1 - e) : 0.0f;
+      const double ratio = texels / footprint;
+      if (exact_ratio ? ramp_is_positive(ratio_f, lo, hi) : ramp_may_be_positive(ratio, lo, hi)) {
+        parts |= gpu::TVT_PART_DPT_POINT;
+        if (!patch_cell_is_narrow(p, texels)) parts |= gpu::TVT_PART_DPT_CORNERS_WIDE;
+      }
+      if (exact_ratio ? ramp_is_below_one(ratio_f, lo, hi) : ramp_may_be_below_one(ratio, lo, hi)) {
+        parts |= gpu::TVT_PART_DPT_EXPECT;
+        const double patches = footprint / std::max(texels, 1e-6);
+        if (ramp_may_be_below_one(patches, gpu::TVT_PATCH_SAMPLES_LO, gpu::TVT_PATCH_SAMPLES_HI)) {
+          parts |= gpu::TVT_PART_DPT_SAMPLES;
+          if (!sample_lattice_is_narrow(p, footprint, texels)) parts |= gpu::TVT_PART_DPT_SAMPLES_WIDE;
         }
       }
+    }
     if (m.mode == gpu::TVT_MODE_FBPB || m.mode == gpu::TVT_MODE_FBPB_DPT) {  // compose_sample()'s FBPB branch
       // The LOD fade of the features: fade = 1 - ramp(lod, end + TVT_FEATURE_POINTS_LODS, that + 1),
       // fade0 = 1 - ramp(LOD at one texel, lo, hi); material_lod() is exactly k + lod_bias at a
@@ -112,6 +129,19 @@ uint32_t prefiltered_parts(const gpu::TvtComposeParams& p, uint32_t mip) {
     }
   }
   return parts;
+}
+
+uint32_t direct_parts(const gpu::TvtComposeParams& p) {
+  for (int n = 1; n < p.material_count && n < gpu::TVT_MAX_MATERIALS; ++n) {
+    const gpu::TvtMaterial& m = p.materials[n];
+    for (int k = 0; k < std::min(m.dpt_layer_count, gpu::TVT_MAX_DPT_LAYERS); ++k) {
+      if (!std::isfinite(double(m.dpt[k].patch_texels)) || !std::isfinite(double(m.dpt_fade_lo)) ||
+          !std::isfinite(double(m.dpt_fade_hi)))
+        return gpu::TVT_PART_ALL;  // not a validated scene: keep every path
+      if (dpt_layer_present(m, k) && !patch_cell_is_narrow(p, m.dpt[k].patch_texels)) return gpu::TVT_PART_ALL;
+    }
+  }
+  return gpu::TVT_PART_ALL & ~gpu::TVT_PART_DPT_CORNERS_WIDE;
 }
 
 GpuComposer::~GpuComposer() = default;
@@ -169,7 +199,7 @@ Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, c
   // The direct variant, and the prefiltered ones of every mip the VT has, now: a driver
   // compiles at pipeline creation, which inside a frame would be a hitch.
   if (!c->make_variants()) return context.status().error();
-  const vk::ComputePipeline* pipeline = c->variant(false, gpu::TVT_PART_ALL);  // made above
+  const vk::ComputePipeline* pipeline = c->variant(false, c->direct_parts_);  // made above
   c->descriptors_ = context.allocate_descriptor_set(*pipeline);
   c->descriptors_.write_buffer(TVT_BIND_COMPOSE_PARAMS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->params_buffer_);
   c->descriptors_.write_buffer(TVT_BIND_MATERIAL_TEXELS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, c->materials_->texels());
@@ -186,6 +216,7 @@ void GpuComposer::derive_specialisation() {
   spec_hex_ = true;
   spec_small_ = false;
   parts_by_mip_.fill(gpu::TVT_PART_ALL);
+  direct_parts_ = gpu::TVT_PART_ALL;
   if (!specialise_) return;
   spec_modes_ = 0;
   spec_hex_ = false;
@@ -197,10 +228,11 @@ void GpuComposer::derive_specialisation() {
   }
   spec_small_ = small_coordinates(params_);
   for (uint32_t mip = 0; mip < parts_by_mip_.size(); ++mip) parts_by_mip_[mip] = prefiltered_parts(params_, mip);
+  direct_parts_ = direct_parts(params_);
 }
 
 bool GpuComposer::make_variants() {
-  if (!variant(false, gpu::TVT_PART_ALL)) return false;
+  if (!variant(false, direct_parts_)) return false;
   if (!specialise_ || params_.prefiltered == 0) return true;
   // Mips 1 to the VT's top one (a single page); record() takes deeper mips as the table's last.
   const VtConfig vt{uint32_t(params_.log2_vt), uint32_t(params_.page_texels), uint32_t(params_.border_texels)};
@@ -281,7 +313,7 @@ Status GpuComposer::record(VkCommandBuffer cmd, std::span<const PageJob> jobs) {
     size_t end = first;
     while (end < order.size() && order[end].first == order[first].first) ++end;
     const uint64_t k = order[first].first;
-    const vk::ComputePipeline* pipeline = k == 0 ? variant(false, gpu::TVT_PART_ALL) : variant(true, uint32_t(k - 1));
+    const vk::ComputePipeline* pipeline = k == 0 ? variant(false, direct_parts_) : variant(true, uint32_t(k - 1));
     if (!pipeline) return context_->status().error();
     context_->fn().vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline->handle());
     const VkDescriptorSet set = descriptors_.handle();

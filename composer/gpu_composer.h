@@ -52,6 +52,11 @@ struct GpuComposerOptions {
 // is kept where float rounding could decide either way); all bits for unvalidated numbers.
 uint32_t prefiltered_parts(const gpu::TvtComposeParams& params, uint32_t mip);
 
+// The TVT_PART_* bits of direct pages (every mip under the direct and supersampled
+// strategies, mip 0 under the prefiltered one): all but TVT_PART_DPT_CORNERS_WIDE where every
+// DPT layer the parameters can show has patches narrower than a weight texel.
+uint32_t direct_parts(const gpu::TvtComposeParams& params);
+
 // Whether every position compose.comp divides by a DPT patch or a hex tile fits their 32-bit
 // paths (TVT_COMPOSE_SPEC_SMALL): V <= 2^21, patches below 2^22 texels, and hex-tiled
 // materials' texel coordinates below 2^28.
@@ -156,6 +161,7 @@ class GpuComposer {
   bool spec_hex_ = true;
   bool spec_small_ = false;
   std::array<uint32_t, 64> parts_by_mip_{};  // prefiltered_parts() of each mip (62 on: as 62)
+  uint32_t direct_parts_ = 0xffffffffu;       // direct_parts()
   std::deque<Variant> variants_;  // a deque: variant() pointers stay valid as it grows
   vk::DescriptorSet descriptors_;  // from the first variant's (identically defined) layout
 };

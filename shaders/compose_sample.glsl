@@ -507,30 +507,20 @@ float patch_blend(int n, int k, float m00, float m10, float m01, float m11, floa
   return w == 1.0 ? bl : safe_pow(bl, w);
 }
 
-// One DPT layer's w (eq 4.1-4.3) at a terrain position.
-float patch_value(int n, int k, int64_t x_fp, int64_t y_fp) {
-  int64_t ix, iy;
-  float fx, fy;
-  patch_cell(n, k, x_fp, ix, fx);
-  patch_cell(n, k, y_fp, iy, fy);
-  return patch_blend(n, k, patch_corner(n, k, ix, iy), patch_corner(n, k, ix + 1, iy), patch_corner(n, k, ix, iy + 1),
-                     patch_corner(n, k, ix + 1, iy + 1), fx, fy);
-}
-
 // The patch masks of the nx x ny corners from (jx, jy) (at most 8 x 8), bit j * 8 + i for
 // corner (jx + i, jy + j): patch_corner() of each.
-uint64_t lattice_masks(int n, int k, int64_t jx, int64_t jy, int nx, int ny) {
+// `narrow`: the lattice spans less than a weight texel a side (the composer's part bits), so
+// its corners' weights blend 3 x 3 weight texels, fetched once, and each column's and row's
+// cell and fraction are worked out once: weight_at() of every corner, the same operations on
+// the same texels.
+uint64_t lattice_masks(int n, int k, int64_t jx, int64_t jy, int nx, int ny, bool narrow) {
   uint64_t bits = 0ul;
-  if (part(TVT_PART_DPT_SAMPLES_WIDE)) {
+  if (!narrow) {
     for (int j = 0; j < ny; ++j)
       for (int i = 0; i < nx; ++i)
         if (patch_corner(n, k, jx + int64_t(i), jy + int64_t(j)) > 0.0) bits |= uint64_t(1) << uint(j * 8 + i);
     return bits;
   }
-  // The lattice spans less than a weight texel a side (prefiltered_parts()), so its corners'
-  // weights blend 3 x 3 weight texels, fetched once, and each column's and row's cell and
-  // fraction are worked out once: weight_at() of every corner, the same operations on the same
-  // texels.
   const int64_t ps = P.materials[n].dpt[k].patch_fp;
   const int layer = P.materials[n].weight_layer;
   const int64_t x0_fp = jx * ps + ps / 2, y0_fp = jy * ps + ps / 2;
@@ -565,6 +555,23 @@ uint64_t lattice_masks(int n, int k, int64_t jx, int64_t jy, int nx, int ny) {
     }
   }
   return bits;
+}
+
+// One DPT layer's w (eq 4.1-4.3) at a terrain position. Where every layer's patch is narrower
+// than a weight texel (TVT_PART_DPT_CORNERS_WIDE clear) its cell's four corners read their
+// weights from one 3 x 3 fetch (lattice_masks()): the same masks.
+float patch_value(int n, int k, int64_t x_fp, int64_t y_fp) {
+  int64_t ix, iy;
+  float fx, fy;
+  patch_cell(n, k, x_fp, ix, fx);
+  patch_cell(n, k, y_fp, iy, fy);
+  if (!part(TVT_PART_DPT_CORNERS_WIDE)) {
+    const uint bits = uint(lattice_masks(n, k, ix, iy, 2, 2, true));
+    return patch_blend(n, k, float(bits & 1u), float((bits >> 1u) & 1u), float((bits >> 8u) & 1u),
+                       float((bits >> 9u) & 1u), fx, fy);
+  }
+  return patch_blend(n, k, patch_corner(n, k, ix, iy), patch_corner(n, k, ix + 1, iy), patch_corner(n, k, ix, iy + 1),
+                     patch_corner(n, k, ix + 1, iy + 1), fx, fy);
 }
 
 // Prefiltered DPT: the layer's actual values at k x k points over the footprint while its
@@ -609,7 +616,8 @@ void patch_samples(int n, int k, int64_t x_fp, int64_t y_fp, float footprint, in
   // the reference does.
   const int nx = qx[kk - 1] - qx[0] + 2, ny = qy[kk - 1] - qy[0] + 2;
   if (nx > 8 || ny > 8) return;
-  const uint64_t bits = lattice_masks(n, k, cx + int64_t(qx[0]), cy + int64_t(qy[0]), nx, ny);
+  const uint64_t bits =
+      lattice_masks(n, k, cx + int64_t(qx[0]), cy + int64_t(qy[0]), nx, ny, !part(TVT_PART_DPT_SAMPLES_WIDE));
   float s1 = 0.0, s2 = 0.0;
   for (int j = 0; j < kk; ++j)
     for (int i = 0; i < kk; ++i) {

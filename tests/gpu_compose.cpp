@@ -236,29 +236,39 @@ TEST_F(GpuCompose, PrefilteredPatchSamplesMatchReferenceAtOddPatchSizes) {
 // prefiltered maths (TVT_COMPOSE_SPEC_*) leave out only what cannot run: every byte as the one
 // pipeline that keeps every path, for every method, strategy and mip, in one mixed batch.
 TEST_F(GpuCompose, SpecialisedPipelinesChangeNoByte) {
-  const SceneAssets& assets = default_assets(16);
   std::vector<PageId> pages;
   for (uint32_t mip = 0; mip <= 9; ++mip) pages.push_back(PageId{mip, 20u >> (mip / 2), 30u >> (mip / 2)});
-  for (const bool hex : {false, true})
-    for (const MipStrategy strategy : {MipStrategy{}, MipStrategy{1, true}, MipStrategy{2}})
-      for (Method m : k_all_methods) {
-        if (strategy.supersample > 1 && (hex || m != Method::FbpbDpt)) continue;  // supersampling: one case
-        if (hex && m != Method::BlendMap && m != Method::FbpbDpt) continue;     // hex: two methods
-        ComposeOptions o = options_for(m, strategy);
-        o.hex = hex;
-        auto packed = pack_scene(assets, o);
-        ASSERT_TRUE(packed.ok()) << packed.error().message;
-        GpuComposerOptions plain;
-        plain.specialise = false;
-        auto specialised = GpuComposer::create(ctx(), packed.value(), uint32_t(pages.size()));
-        auto general = GpuComposer::create(ctx(), packed.value(), uint32_t(pages.size()), plain);
-        ASSERT_TRUE(specialised.ok() && general.ok());
-        const auto a = specialised.value()->compose_pages(pages).value();
-        const auto b = general.value()->compose_pages(pages).value();
-        for (size_t i = 0; i < pages.size(); ++i)
-          EXPECT_TRUE(a[i] == b[i]) << to_string(m) << " " << to_string(strategy) << (hex ? " hex" : "") << ": mip "
-                                    << pages[i].mip;
-      }
+  // V = 2^16: a weight texel every 128 level-0 texels, narrower than most DPT patches, so the
+  // direct pages take the corners' general path. V = 2^20 (the built-in scene's): every patch
+  // is narrower than a weight texel, so they take the narrow one; the DPT methods there.
+  for (const uint32_t log2_vt : {16u, 20u}) {
+    const SceneAssets& assets = default_assets(log2_vt);
+    for (const bool hex : {false, true})
+      for (const MipStrategy strategy : {MipStrategy{}, MipStrategy{1, true}, MipStrategy{2}})
+        for (Method m : k_all_methods) {
+          if (strategy.supersample > 1 && (hex || m != Method::FbpbDpt)) continue;  // supersampling: one case
+          if (hex && m != Method::BlendMap && m != Method::FbpbDpt) continue;     // hex: two methods
+          const bool with_dpt = m == Method::Dpt1 || m == Method::Dpt2 || m == Method::FbpbDpt;
+          if (log2_vt == 20u && (!with_dpt || hex || strategy.supersample > 1)) continue;
+          ComposeOptions o = options_for(m, strategy);
+          o.hex = hex;
+          auto packed = pack_scene(assets, o);
+          ASSERT_TRUE(packed.ok()) << packed.error().message;
+          if (with_dpt)
+            EXPECT_EQ(direct_parts(packed.value().params) & gpu::TVT_PART_DPT_CORNERS_WIDE,
+                      log2_vt == 20u ? 0u : gpu::TVT_PART_DPT_CORNERS_WIDE);
+          GpuComposerOptions plain;
+          plain.specialise = false;
+          auto specialised = GpuComposer::create(ctx(), packed.value(), uint32_t(pages.size()));
+          auto general = GpuComposer::create(ctx(), packed.value(), uint32_t(pages.size()), plain);
+          ASSERT_TRUE(specialised.ok() && general.ok());
+          const auto a = specialised.value()->compose_pages(pages).value();
+          const auto b = general.value()->compose_pages(pages).value();
+          for (size_t i = 0; i < pages.size(); ++i)
+            EXPECT_TRUE(a[i] == b[i]) << to_string(m) << " " << to_string(strategy) << (hex ? " hex" : "")
+                                      << " V = 2^" << log2_vt << ": mip " << pages[i].mip;
+        }
+  }
 }
 
 // Level 0 half-way through the FBPB fade (fade0 = 0.5) with chipped holes: the prefiltered
@@ -375,7 +385,8 @@ TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureFadeWithTheFootprint)
   // lower end: the shader's ratio is exact at power-of-two footprints and its ramp is exactly 1
   // and 0 there, so the expectation (and its samples) and the point value are left out.
   EXPECT_EQ(prefiltered_parts(p, 5), TVT_PART_DPT_POINT | TVT_PART_FEATURE_EXPECT);
-  EXPECT_EQ(prefiltered_parts(p, 6), TVT_PART_ALL & ~TVT_PART_FEATURES & ~TVT_PART_DPT_SAMPLES_WIDE);
+  EXPECT_EQ(prefiltered_parts(p, 6),
+            TVT_PART_ALL & ~TVT_PART_FEATURES & ~TVT_PART_DPT_SAMPLES_WIDE & ~TVT_PART_DPT_CORNERS_WIDE);
   EXPECT_EQ(prefiltered_parts(p, 7), TVT_PART_DPT_EXPECT | TVT_PART_DPT_SAMPLES | TVT_PART_FEATURE_EXPECT);
   // Footprint 256: four patches a side, in expectation from samples; 1024: 16, expectation alone.
   EXPECT_EQ(prefiltered_parts(p, 8), TVT_PART_DPT_EXPECT | TVT_PART_DPT_SAMPLES | TVT_PART_FEATURE_EXPECT);
@@ -388,17 +399,34 @@ TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureFadeWithTheFootprint)
     EXPECT_EQ(prefiltered_parts(p, 8) & TVT_PART_DPT_SAMPLES_WIDE, size == 2048 ? 0u : TVT_PART_DPT_SAMPLES_WIDE) << size;
     EXPECT_EQ(prefiltered_parts(p, 5) & TVT_PART_DPT_SAMPLES_WIDE, 0u) << size;  // no samples at footprint 32
   }
+  // A patch cell's corners lie one patch (64 texels, + 1 for rounding) apart: narrow at any
+  // weight grid up to 16384 a side (a texel every 64 texels, less the margin, is not enough),
+  // where the point value is composed (mips 1-6) and in direct pages; no weights keep the
+  // general path.
+  for (const int size : {16384, 8192, 0}) {
+    p.weight_width = size;
+    const uint32_t wide = size == 8192 ? 0u : TVT_PART_DPT_CORNERS_WIDE;
+    EXPECT_EQ(prefiltered_parts(p, 1) & TVT_PART_DPT_CORNERS_WIDE, wide) << size;
+    EXPECT_EQ(prefiltered_parts(p, 6) & TVT_PART_DPT_CORNERS_WIDE, wide) << size;
+    EXPECT_EQ(prefiltered_parts(p, 8) & TVT_PART_DPT_CORNERS_WIDE, 0u) << size;  // no point value at footprint 256
+    EXPECT_EQ(direct_parts(p), TVT_PART_ALL & ~(TVT_PART_DPT_CORNERS_WIDE & ~wide)) << size;
+  }
   p.weight_width = 512;
   // FBPB features that have faded out before the finest texture level: never in expectation.
   fbpb.fbpb_fade_lo = -2.0f;
   fbpb.fbpb_fade_hi = -1.0f;
   EXPECT_EQ(prefiltered_parts(p, 10), TVT_PART_DPT_EXPECT);
-  // A DPT layer below the minification fade is absent at every footprint.
+  // A DPT layer below the minification fade is absent at every footprint: direct pages need
+  // no general path for it, however wide it would be.
   dpt.dpt[0].patch_texels = 0.5f;
   EXPECT_EQ(prefiltered_parts(p, 1), 0u);
+  p.weight_width = 0;
+  EXPECT_EQ(direct_parts(p), TVT_PART_ALL & ~TVT_PART_DPT_CORNERS_WIDE);
+  p.weight_width = 512;
   // Numbers no validated scene has keep every part.
   dpt.dpt[0].patch_texels = std::numeric_limits<float>::quiet_NaN();
   EXPECT_EQ(prefiltered_parts(p, 4), TVT_PART_ALL);
+  EXPECT_EQ(direct_parts(p), TVT_PART_ALL);
   dpt.dpt[0].patch_texels = 64.0f;
   fbpb.period_fp = 0;
   EXPECT_EQ(prefiltered_parts(p, 4), TVT_PART_ALL);

@@ -28,9 +28,10 @@ TVT_CONST int TVT_MODE_FBPB_DPT = 4;  // FBPB features over a DPT-shaped non-fea
 #define TVT_COMPOSE_SPEC_HEX 17
 // Mips >= 1 of the prefiltered strategy may be composed (false: every sample is direct).
 #define TVT_COMPOSE_SPEC_PREFILTERED 18
-// Prefiltered: which of its parts a page of this mip can reach (TVT_PART_* bits; the composer
-// works them out per mip from the parameters, conservatively: a cleared bit is a part whose
-// weight is zero for every material at that footprint).
+// Which parts a page of this mip can reach (TVT_PART_* bits; the composer works them out per
+// mip from the parameters, conservatively: a cleared bit is a part whose weight is zero for
+// every material at that footprint, or a general path the scene never needs). Direct pages
+// use TVT_PART_DPT_CORNERS_WIDE alone.
 #define TVT_COMPOSE_SPEC_PARTS 19
 // Every position a DPT layer or hex-tiling divides fits their 32-bit paths (V <= 2^21, patches
 // and hex tiles of fewer than 2^22 texels; the composer checks the scene): the 64-bit
@@ -48,7 +49,11 @@ TVT_CONST uint TVT_PART_FEATURE_EXPECT = 16u;  // FBPB's features in expectation
 // ... samples whose corner lattice may span a weight texel or more a side (else its corners'
 // weights come from 3 x 3 weight texels fetched once per lattice).
 TVT_CONST uint TVT_PART_DPT_SAMPLES_WIDE = 32u;
-TVT_CONST uint TVT_PART_ALL = 63u;
+// Some DPT layer's patch may be a weight texel wide or more (else a patch cell's four corners
+// read their weights from 3 x 3 weight texels fetched once). Direct pages as well: the
+// composer clears it in its direct variant too.
+TVT_CONST uint TVT_PART_DPT_CORNERS_WIDE = 64u;
+TVT_CONST uint TVT_PART_ALL = 127u;
 
 // A material's texel words (texel_offset): its mip chain, level l = 0 .. log2 R of
 // (R >> l)^2 RGBA8 texels, each level l >= 1 followed by its spread chain, then the statistics
