@@ -62,6 +62,12 @@ void blend_map_expected(double b, double a_mean, double a_var, double s, double&
   dev = ((smoothstep_moment(t1) - smoothstep_moment(t0)) / (2.0 * half) - tm * e) / c1;
 }
 
+// A's variance within the footprint from its two pieces (p, delta, h_lo, h_hi): the pieces'
+// means' delta^2 and each piece's uniform spread h^2 / 3.
+double spread_variance(const glm::dvec4& spread) {
+  return spread.y * spread.y + (spread.x * spread.z * spread.z + (1.0 - spread.x) * spread.w * spread.w) / 3.0;
+}
+
 // The blend map's means over A in two pieces (the spread chain, compose_types.h): `spread` =
 // (p, delta, h_lo, h_hi), the lower piece's share, the standard deviation of the pieces' means
 // about a_mean and their half-widths; each piece uniform (blend_map_expected), mixed by share.
@@ -69,8 +75,7 @@ void blend_map_expected(double b, double a_mean, double a_var, double s, double&
 void blend_map_spread(double b, double a_mean, const glm::dvec4& spread, double s, double& e, double& dev) {
   const double p = clamp01(spread.x), delta = std::max(spread.y, 0.0);
   if (!(delta > 1e-4) || p <= 0.0 || p >= 1.0) {  // one piece: the pieces' widths and delta pooled
-    const double var = (p * spread.z * spread.z + (1.0 - p) * spread.w * spread.w) / 3.0 + delta * delta;
-    blend_map_expected(b, a_mean, var, s, e, dev);
+    blend_map_expected(b, a_mean, spread_variance(glm::dvec4(p, delta, spread.z, spread.w)), s, e, dev);
     return;
   }
   const double lo = std::max(a_mean - delta * std::sqrt((1.0 - p) / p), -1.0);
@@ -110,12 +115,6 @@ void blend_map_of_patches(double settled, double mean, double var, double span, 
   blend_map_spread(std::min(settled + high * span, 1.0), a_mean, a_spread, s, e_high, d_high);
   e = (1.0 - mu) * e_low + mu * e_high;
   dev = (1.0 - mu) * d_low + mu * d_high;
-}
-
-// A's variance within the footprint from its two pieces (p, delta, h_lo, h_hi): the pieces'
-// means' delta^2 and each piece's uniform spread h^2 / 3.
-double spread_variance(const glm::dvec4& spread) {
-  return spread.y * spread.y + (spread.x * spread.z * spread.z + (1.0 - spread.x) * spread.w * spread.w) / 3.0;
 }
 
 // Linear fade: 0 at or below lo, 1 at or above hi (a step at lo when hi <= lo).

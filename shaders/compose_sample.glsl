@@ -71,6 +71,12 @@ void blend_map_expected(float b, float a_mean, float a_var, float s, out float e
   dev = ((smoothstep_moment(t1) - smoothstep_moment(t0)) / (2.0 * half_width) - tm * e) / c1;
 }
 
+// A's variance within the footprint from its two pieces (p, delta, h_lo, h_hi): the pieces'
+// means' delta^2 and each piece's uniform spread h^2 / 3.
+float spread_variance(vec4 spread) {
+  return spread.y * spread.y + (spread.x * spread.z * spread.z + (1.0 - spread.x) * spread.w * spread.w) / 3.0;
+}
+
 // The blend map's means over A in two pieces, `spread` = (p, delta, h_lo, h_hi) from the spread
 // chain (reference_compositor.cpp blend_map_spread). Where A is one piece (delta too small, or p
 // at an end) both calls see it and the first has weight 1, which gives its values exactly: one
@@ -80,20 +86,13 @@ void blend_map_spread(float b, float a_mean, vec4 spread, float s, out float e, 
   const bool two = delta > 1e-4 && p > 0.0 && p < 1.0;
   const float lo = two ? max(a_mean - delta * sqrt((1.0 - p) / p), -1.0) : a_mean;
   const float hi = two ? min(a_mean + delta * sqrt(p / (1.0 - p)), 2.0) : a_mean;
-  const float var_lo = two ? spread.z * spread.z / 3.0
-                           : (p * spread.z * spread.z + (1.0 - p) * spread.w * spread.w) / 3.0 + delta * delta;
+  const float var_lo = two ? spread.z * spread.z / 3.0 : spread_variance(vec4(p, delta, spread.z, spread.w));
   const float w_lo = two ? p : 1.0;
   float e_lo, d_lo, e_hi, d_hi;
   blend_map_expected(b, lo, var_lo, s, e_lo, d_lo);
   blend_map_expected(b, hi, spread.w * spread.w / 3.0, s, e_hi, d_hi);
   e = w_lo * e_lo + (1.0 - w_lo) * e_hi;
   dev = w_lo * (d_lo + e_lo * (lo - a_mean)) + (1.0 - w_lo) * (d_hi + e_hi * (hi - a_mean));
-}
-
-// A's variance within the footprint from its two pieces (p, delta, h_lo, h_hi): the pieces'
-// means' delta^2 and each piece's uniform spread h^2 / 3.
-float spread_variance(vec4 spread) {
-  return spread.y * spread.y + (spread.x * spread.z * spread.z + (1.0 - spread.x) * spread.w * spread.w) / 3.0;
 }
 
 // One axis of weight_at(): the grid cell (unclamped) whose texels a bilinear fetch of a
