@@ -51,7 +51,8 @@ bool patch_cell_is_narrow(const gpu::TvtComposeParams& p, double patch_texels) {
   return lattice_is_narrow(p, patch_texels + 1.0);
 }
 
-// A DPT layer the parameters can show at some footprint (its fade), of a material with DPT.
+// A DPT layer of a material with DPT that level 0 shows (its fade at one texel a texel), so
+// the prefiltered maths do (dpt()'s `present`).
 bool dpt_layer_present(const gpu::TvtMaterial& m, int k) {
   return (m.mode == gpu::TVT_MODE_DPT || m.mode == gpu::TVT_MODE_FBPB_DPT) &&
          ramp_may_be_positive(m.dpt[k].patch_texels, m.dpt_fade_lo, m.dpt_fade_hi);
@@ -134,12 +135,11 @@ uint32_t prefiltered_parts(const gpu::TvtComposeParams& p, uint32_t mip) {
 uint32_t direct_parts(const gpu::TvtComposeParams& p) {
   for (int n = 1; n < p.material_count && n < gpu::TVT_MAX_MATERIALS; ++n) {
     const gpu::TvtMaterial& m = p.materials[n];
-    for (int k = 0; k < std::min(m.dpt_layer_count, gpu::TVT_MAX_DPT_LAYERS); ++k) {
-      if (!std::isfinite(double(m.dpt[k].patch_texels)) || !std::isfinite(double(m.dpt_fade_lo)) ||
-          !std::isfinite(double(m.dpt_fade_hi)))
-        return gpu::TVT_PART_ALL;  // not a validated scene: keep every path
-      if (dpt_layer_present(m, k) && !patch_cell_is_narrow(p, m.dpt[k].patch_texels)) return gpu::TVT_PART_ALL;
-    }
+    if (m.mode != gpu::TVT_MODE_DPT && m.mode != gpu::TVT_MODE_FBPB_DPT) continue;
+    // Every layer, whatever its fade: a supersampled page's footprint is below a level-0
+    // texel, where a layer too small for level 0 can show. A NaN patch is not narrow.
+    for (int k = 0; k < std::min(m.dpt_layer_count, gpu::TVT_MAX_DPT_LAYERS); ++k)
+      if (!patch_cell_is_narrow(p, m.dpt[k].patch_texels)) return gpu::TVT_PART_ALL;
   }
   return gpu::TVT_PART_ALL & ~gpu::TVT_PART_DPT_CORNERS_WIDE;
 }

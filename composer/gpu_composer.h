@@ -54,7 +54,8 @@ uint32_t prefiltered_parts(const gpu::TvtComposeParams& params, uint32_t mip);
 
 // The TVT_PART_* bits of direct pages (every mip under the direct and supersampled
 // strategies, mip 0 under the prefiltered one): all but TVT_PART_DPT_CORNERS_WIDE where every
-// DPT layer the parameters can show has patches narrower than a weight texel.
+// DPT layer has patches narrower than a weight texel (whatever its fade: a supersampled
+// page's footprint is below a level-0 texel).
 uint32_t direct_parts(const gpu::TvtComposeParams& params);
 
 // Whether every position compose.comp divides by a DPT patch or a hex tile fits their 32-bit

@@ -240,7 +240,8 @@ TEST_F(GpuCompose, SpecialisedPipelinesChangeNoByte) {
   for (uint32_t mip = 0; mip <= 9; ++mip) pages.push_back(PageId{mip, 20u >> (mip / 2), 30u >> (mip / 2)});
   // V = 2^16: a weight texel every 128 level-0 texels, narrower than most DPT patches, so the
   // direct pages take the corners' general path. V = 2^20 (the built-in scene's): every patch
-  // is narrower than a weight texel, so they take the narrow one; the DPT methods there.
+  // is narrower than a weight texel, so they take the narrow one; the DPT methods there, and
+  // supersampled (footprints below a texel at mip 0).
   for (const uint32_t log2_vt : {16u, 20u}) {
     const SceneAssets& assets = default_assets(log2_vt);
     for (const bool hex : {false, true})
@@ -249,14 +250,15 @@ TEST_F(GpuCompose, SpecialisedPipelinesChangeNoByte) {
           if (strategy.supersample > 1 && (hex || m != Method::FbpbDpt)) continue;  // supersampling: one case
           if (hex && m != Method::BlendMap && m != Method::FbpbDpt) continue;     // hex: two methods
           const bool with_dpt = m == Method::Dpt1 || m == Method::Dpt2 || m == Method::FbpbDpt;
-          if (log2_vt == 20u && (!with_dpt || hex || strategy.supersample > 1)) continue;
+          if (log2_vt == 20u && (!with_dpt || hex)) continue;
           ComposeOptions o = options_for(m, strategy);
           o.hex = hex;
           auto packed = pack_scene(assets, o);
           ASSERT_TRUE(packed.ok()) << packed.error().message;
-          if (with_dpt)
+          if (with_dpt) {
             EXPECT_EQ(direct_parts(packed.value().params) & gpu::TVT_PART_DPT_CORNERS_WIDE,
                       log2_vt == 20u ? 0u : gpu::TVT_PART_DPT_CORNERS_WIDE);
+          }
           GpuComposerOptions plain;
           plain.specialise = false;
           auto specialised = GpuComposer::create(ctx(), packed.value(), uint32_t(pages.size()));
@@ -416,13 +418,17 @@ TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureFadeWithTheFootprint)
   fbpb.fbpb_fade_lo = -2.0f;
   fbpb.fbpb_fade_hi = -1.0f;
   EXPECT_EQ(prefiltered_parts(p, 10), TVT_PART_DPT_EXPECT);
-  // A DPT layer below the minification fade is absent at every footprint: direct pages need
-  // no general path for it, however wide it would be.
+  // A DPT layer below the minification fade is absent at every prefiltered footprint; a
+  // direct page supersampled 4 x 4 (footprint 1/4) shows it, so direct pages keep the general
+  // path where it would be wide (a weight texel every 0.5 level-0 texels).
   dpt.dpt[0].patch_texels = 0.5f;
   EXPECT_EQ(prefiltered_parts(p, 1), 0u);
-  p.weight_width = 0;
-  EXPECT_EQ(direct_parts(p), TVT_PART_ALL & ~TVT_PART_DPT_CORNERS_WIDE);
+  p.log2_vt = 10;
+  p.weight_width = 2048;
+  EXPECT_EQ(direct_parts(p), TVT_PART_ALL);
+  p.log2_vt = 20;
   p.weight_width = 512;
+  EXPECT_EQ(direct_parts(p), TVT_PART_ALL & ~TVT_PART_DPT_CORNERS_WIDE);
   // Numbers no validated scene has keep every part.
   dpt.dpt[0].patch_texels = std::numeric_limits<float>::quiet_NaN();
   EXPECT_EQ(prefiltered_parts(p, 4), TVT_PART_ALL);
