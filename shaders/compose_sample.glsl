@@ -523,33 +523,35 @@ uint64_t lattice_masks(int n, int k, int64_t jx, int64_t jy, int nx, int ny, boo
   const int64_t ps = P.materials[n].dpt[k].patch_fp;
   const int layer = P.materials[n].weight_layer;
   const int64_t x0_fp = jx * ps + ps / 2, y0_fp = jy * ps + ps / 2;
-  int cell_x, cell_y, c0, c1;
-  float f;
-  weight_axis(x0_fp, P.weight_width, cell_x, c0, c1, f);
-  weight_axis(y0_fp, P.weight_height, cell_y, c0, c1, f);
+  // Each column's and row's fraction, and whether it lies in the cell after the first one's.
+  float col_f[8], row_f[8];
+  uint col_next = 0u, row_next = 0u;
+  int cell_x = 0, cell_y = 0, c0, c1;
+  for (int i = 0; i < nx; ++i) {
+    int cell;
+    weight_axis(x0_fp + int64_t(i) * ps, P.weight_width, cell, c0, c1, col_f[i]);
+    if (i == 0) cell_x = cell;
+    if (cell != cell_x) col_next |= 1u << uint(i);
+  }
+  for (int j = 0; j < ny; ++j) {
+    int cell;
+    weight_axis(y0_fp + int64_t(j) * ps, P.weight_height, cell, c0, c1, row_f[j]);
+    if (j == 0) cell_y = cell;
+    if (cell != cell_y) row_next |= 1u << uint(j);
+  }
   const ivec3 tx = clamp(ivec3(cell_x) + ivec3(0, 1, 2), ivec3(0), ivec3(P.weight_width - 1));
   const ivec3 ty = clamp(ivec3(cell_y) + ivec3(0, 1, 2), ivec3(0), ivec3(P.weight_height - 1));
   const vec3 row0 = vec3(weight_texel(layer, tx.x, ty.x), weight_texel(layer, tx.y, ty.x), weight_texel(layer, tx.z, ty.x));
   const vec3 row1 = vec3(weight_texel(layer, tx.x, ty.y), weight_texel(layer, tx.y, ty.y), weight_texel(layer, tx.z, ty.y));
   const vec3 row2 = vec3(weight_texel(layer, tx.x, ty.z), weight_texel(layer, tx.y, ty.z), weight_texel(layer, tx.z, ty.z));
-  float col_f[8];
-  uint col_next = 0u;  // bit i: column i lies in the cell after cell_x
-  for (int i = 0; i < nx; ++i) {
-    int cell;
-    weight_axis(x0_fp + int64_t(i) * ps, P.weight_width, cell, c0, c1, col_f[i]);
-    if (cell != cell_x) col_next |= 1u << uint(i);
-  }
   for (int j = 0; j < ny; ++j) {
-    int cell;
-    float fy;
-    weight_axis(y0_fp + int64_t(j) * ps, P.weight_height, cell, c0, c1, fy);
-    const bool next_row = cell != cell_y;
+    const bool next_row = ((row_next >> uint(j)) & 1u) != 0u;
     const vec3 top = next_row ? row1 : row0, bottom = next_row ? row2 : row1;
     for (int i = 0; i < nx; ++i) {
       const bool next = ((col_next >> uint(i)) & 1u) != 0u;
       const float w00 = next ? top.y : top.x, w10 = next ? top.z : top.y;
       const float w01 = next ? bottom.y : bottom.x, w11 = next ? bottom.z : bottom.y;
-      const float w = clamp01(mix(mix(w00, w10, col_f[i]), mix(w01, w11, col_f[i]), fy));
+      const float w = clamp01(mix(mix(w00, w10, col_f[i]), mix(w01, w11, col_f[i]), row_f[j]));
       if (patch_mask(n, k, jx + int64_t(i), jy + int64_t(j), w)) bits |= uint64_t(1) << uint(j * 8 + i);
     }
   }
