@@ -76,7 +76,13 @@ bool small_coordinates(const gpu::TvtComposeParams& p) {
   return true;
 }
 
-uint32_t prefiltered_parts(const gpu::TvtComposeParams& p, uint32_t mip) {
+namespace {
+// prefiltered_parts() and sample_pairs(): the parts of mip `mip`, and every (material, layer)
+// pair whose samples it reaches, in material and layer order (`pairs`, at most
+// TVT_SAMPLE_PAIRS_MAX of them, `more` beyond).
+uint32_t prefiltered_reach(const gpu::TvtComposeParams& p, uint32_t mip, uint32_t* pairs, bool* more) {
+  *pairs = 0;
+  *more = false;
   // compose.comp's footprint: 2^mip level-0 texels over at most 2^mip sub-samples a side.
   const double s = std::min(std::max(double(p.supersample), 1.0), std::ldexp(1.0, int(std::min(mip, 62u))));
   const double footprint = std::max(std::ldexp(1.0, int(std::min(mip, 62u))) / s, 1.0 / 256.0);
@@ -107,6 +113,10 @@ uint32_t prefiltered_parts(const gpu::TvtComposeParams& p, uint32_t mip) {
         const double patches = footprint / std::max(texels, 1e-6);
         if (ramp_may_be_below_one(patches, gpu::TVT_PATCH_SAMPLES_LO, gpu::TVT_PATCH_SAMPLES_HI)) {
           parts |= gpu::TVT_PART_DPT_SAMPLES;
+          if (int(gpu::tvt_sample_pairs_count(*pairs)) < gpu::TVT_SAMPLE_PAIRS_MAX)
+            *pairs = gpu::tvt_sample_pairs_add(*pairs, n, k);
+          else
+            *more = true;
           if (!sample_lattice_is_narrow(p, footprint, texels)) parts |= gpu::TVT_PART_DPT_SAMPLES_WIDE;
         }
       }
@@ -130,6 +140,21 @@ uint32_t prefiltered_parts(const gpu::TvtComposeParams& p, uint32_t mip) {
     }
   }
   return parts;
+}
+}  // namespace
+
+uint32_t prefiltered_parts(const gpu::TvtComposeParams& p, uint32_t mip) {
+  uint32_t pairs = 0;
+  bool more = false;
+  return prefiltered_reach(p, mip, &pairs, &more);
+}
+
+uint32_t sample_pairs(const gpu::TvtComposeParams& p, uint32_t mip) {
+  uint32_t pairs = 0;
+  bool more = false;
+  const uint32_t parts = prefiltered_reach(p, mip, &pairs, &more);
+  // Unvalidated numbers keep every part, in the loop.
+  return more || parts == gpu::TVT_PART_ALL ? 0u : pairs;
 }
 
 uint32_t direct_parts(const gpu::TvtComposeParams& p) {
@@ -216,6 +241,7 @@ void GpuComposer::derive_specialisation() {
   spec_hex_ = true;
   spec_small_ = false;
   parts_by_mip_.fill(gpu::TVT_PART_ALL);
+  pairs_by_mip_.fill(0);
   direct_parts_ = gpu::TVT_PART_ALL;
   if (!specialise_) return;
   spec_modes_ = 0;
@@ -227,7 +253,11 @@ void GpuComposer::derive_specialisation() {
     spec_hex_ = spec_hex_ || params_.materials[n].hex_edge > 0;
   }
   spec_small_ = small_coordinates(params_);
-  for (uint32_t mip = 0; mip < parts_by_mip_.size(); ++mip) parts_by_mip_[mip] = prefiltered_parts(params_, mip);
+  for (uint32_t mip = 0; mip < parts_by_mip_.size(); ++mip) {
+    // The layers sample_pairs() names are sampled before the material loop, not in it.
+    pairs_by_mip_[mip] = sample_pairs(params_, mip);
+    parts_by_mip_[mip] = prefiltered_parts(params_, mip) & (pairs_by_mip_[mip] ? ~gpu::TVT_PART_DPT_SAMPLES : ~0u);
+  }
   direct_parts_ = direct_parts(params_);
 }
 
@@ -238,19 +268,21 @@ bool GpuComposer::make_variants() {
   const VtConfig vt{uint32_t(params_.log2_vt), uint32_t(params_.page_texels), uint32_t(params_.border_texels)};
   const uint32_t top = uint32_t(std::clamp(int(vt.mip_count()) - 1, 1, int(parts_by_mip_.size()) - 1));
   for (uint32_t mip = 1; mip <= top; ++mip)
-    if (!variant(true, parts_by_mip_[mip])) return false;
+    if (!variant(true, parts_by_mip_[mip], pairs_by_mip_[mip])) return false;
   return true;
 }
 
-const vk::ComputePipeline* GpuComposer::variant(bool prefiltered, uint32_t parts) {
+const vk::ComputePipeline* GpuComposer::variant(bool prefiltered, uint32_t parts, uint32_t pairs) {
   if (!specialise_) {
     prefiltered = true;  // compose.comp decides per page
     parts = gpu::TVT_PART_ALL;
+    pairs = 0;
   }
   const uint32_t modes = spec_modes_;
   const bool hex = spec_hex_, small = spec_small_;
   for (const Variant& v : variants_)
-    if (v.modes == modes && v.hex == hex && v.prefiltered == prefiltered && v.parts == parts && v.small == small)
+    if (v.modes == modes && v.hex == hex && v.prefiltered == prefiltered && v.parts == parts && v.pairs == pairs &&
+        v.small == small)
       return &v.pipeline;
   // Every variant has the same bindings, so one descriptor set serves them all.
   static constexpr vk::ComputeBinding bindings[] = {
@@ -264,11 +296,12 @@ const vk::ComputePipeline* GpuComposer::variant(bool prefiltered, uint32_t parts
       {TVT_COMPOSE_SPEC_PREFILTERED, prefiltered ? 1u : 0u},
       {TVT_COMPOSE_SPEC_PARTS, parts},
       {TVT_COMPOSE_SPEC_SMALL, small ? 1u : 0u},
-      {TVT_COMPOSE_SPEC_ONLY_PREFILTERED, specialise_ && prefiltered ? 1u : 0u}};
+      {TVT_COMPOSE_SPEC_ONLY_PREFILTERED, specialise_ && prefiltered ? 1u : 0u},
+      {TVT_COMPOSE_SPEC_SAMPLE_PAIRS, pairs}};
   vk::ComputePipeline pipeline =
       context_->create_compute_pipeline(shaders::compose_comp(), bindings, sizeof(gpu::TvtComposePush), constants);
   if (pipeline.handle() == VK_NULL_HANDLE) return nullptr;
-  variants_.push_back(Variant{modes, hex, prefiltered, parts, small, std::move(pipeline)});
+  variants_.push_back(Variant{modes, hex, prefiltered, parts, pairs, small, std::move(pipeline)});
   return &variants_.back().pipeline;
 }
 
@@ -293,7 +326,8 @@ Status GpuComposer::record(VkCommandBuffer cmd, std::span<const PageJob> jobs) {
   // A job names its slot, so the order is free.
   const auto key = [&](const PageJob& j) -> uint64_t {
     if (!specialise_ || params_.prefiltered == 0 || j.page.mip == 0) return 0;
-    return 1 + uint64_t(parts_by_mip_[std::min<size_t>(j.page.mip, parts_by_mip_.size() - 1)]);
+    const size_t mip = std::min<size_t>(j.page.mip, parts_by_mip_.size() - 1);
+    return 1 + (uint64_t(pairs_by_mip_[mip]) << 32 | parts_by_mip_[mip]);
   };
   std::vector<std::pair<uint64_t, uint32_t>> order;  // (variant key, job)
   order.reserve(jobs.size());
@@ -313,7 +347,7 @@ Status GpuComposer::record(VkCommandBuffer cmd, std::span<const PageJob> jobs) {
     size_t end = first;
     while (end < order.size() && order[end].first == order[first].first) ++end;
     const uint64_t k = order[first].first;
-    const vk::ComputePipeline* pipeline = k == 0 ? variant(false, direct_parts_) : variant(true, uint32_t(k - 1));
+    const vk::ComputePipeline* pipeline = k == 0 ? variant(false, direct_parts_) : variant(true, uint32_t(k - 1), uint32_t((k - 1) >> 32));
     if (!pipeline) return context_->status().error();
     context_->fn().vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline->handle());
     const VkDescriptorSet set = descriptors_.handle();

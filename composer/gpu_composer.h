@@ -52,6 +52,13 @@ struct GpuComposerOptions {
 // is kept where float rounding could decide either way); all bits for unvalidated numbers.
 uint32_t prefiltered_parts(const gpu::TvtComposeParams& params, uint32_t mip);
 
+// The (material, layer) pairs whose DPT samples a page of mip `mip` can reach
+// (TVT_COMPOSE_SPEC_SAMPLE_PAIRS, tvt_sample_pairs_*), in material and layer order, where
+// prefiltered_parts() has TVT_PART_DPT_SAMPLES and they are at most TVT_SAMPLE_PAIRS_MAX; else
+// 0, and the samples stay in the material loop. The composer's variant for that mip samples
+// these pairs once a texel before the loop, each with its material and layer as constants.
+uint32_t sample_pairs(const gpu::TvtComposeParams& params, uint32_t mip);
+
 // The TVT_PART_* bits of direct pages (every mip under the direct and supersampled
 // strategies, mip 0 under the prefiltered one): all but TVT_PART_DPT_CORNERS_WIDE where every
 // DPT layer has patches narrower than a weight texel (whatever its fade: a supersampled
@@ -146,11 +153,12 @@ class GpuComposer {
     bool hex = false;
     bool prefiltered = false;
     uint32_t parts = 0;  // TVT_PART_*
+    uint32_t pairs = 0;  // sample_pairs()
     bool small = false;  // small_coordinates()
     vk::ComputePipeline pipeline;
   };
   // The variant for the current parameters; nullptr after a failed Vulkan call.
-  const vk::ComputePipeline* variant(bool prefiltered, uint32_t parts);
+  const vk::ComputePipeline* variant(bool prefiltered, uint32_t parts, uint32_t pairs = 0);
   // Makes the variants the parameters need: the direct one, and the prefiltered ones of every
   // mip of the VT when they ask for that strategy (create() and set_params(), so that no
   // driver compiles inside a frame); false after a failed Vulkan call.
@@ -161,7 +169,9 @@ class GpuComposer {
   uint32_t spec_modes_ = 0xffffffffu;
   bool spec_hex_ = true;
   bool spec_small_ = false;
-  std::array<uint32_t, 64> parts_by_mip_{};  // prefiltered_parts() of each mip (62 on: as 62)
+  std::array<uint32_t, 64> parts_by_mip_{};  // prefiltered_parts() of each mip (62 on: as 62),
+                                              // less the samples where sample_pairs() has them
+  std::array<uint32_t, 64> pairs_by_mip_{};   // sample_pairs() of each mip
   uint32_t direct_parts_ = 0xffffffffu;       // direct_parts()
   std::deque<Variant> variants_;  // a deque: variant() pointers stay valid as it grows
   vk::DescriptorSet descriptors_;  // from the first variant's (identically defined) layout

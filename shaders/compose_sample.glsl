@@ -15,6 +15,7 @@ layout(constant_id = TVT_COMPOSE_SPEC_PREFILTERED) const bool k_compose_prefilte
 layout(constant_id = TVT_COMPOSE_SPEC_PARTS) const uint k_compose_parts = 0xffffffffu;
 layout(constant_id = TVT_COMPOSE_SPEC_SMALL) const bool k_compose_small = false;
 layout(constant_id = TVT_COMPOSE_SPEC_ONLY_PREFILTERED) const bool k_compose_only_prefiltered = false;
+layout(constant_id = TVT_COMPOSE_SPEC_SAMPLE_PAIRS) const uint k_compose_sample_pairs = 0u;
 bool part(uint bit) { return (k_compose_parts & bit) != 0u; }
 bool mode_is(int mode, int m) { return (k_compose_modes & (1u << uint(m))) != 0u && mode == m; }
 
@@ -634,6 +635,27 @@ void patch_samples(int n, int k, int64_t x_fp, int64_t y_fp, float footprint, in
   second = mix(s2, second, g);
 }
 
+// The samples of the (material, layer) pairs TVT_COMPOSE_SPEC_SAMPLE_PAIRS names: dpt()'s
+// expectation from patch_samples() for each, worked out before the material loop with the
+// material and layer as constants (a device that runs every branch pays for the samples of
+// these pairs alone, not of every material and layer).
+float g_pair_expected[TVT_SAMPLE_PAIRS_MAX], g_pair_second[TVT_SAMPLE_PAIRS_MAX];
+void sample_pair(int i, int64_t x_fp, int64_t y_fp, float footprint, float plain) {
+  const int n = tvt_sample_pairs_material(k_compose_sample_pairs, i), k = tvt_sample_pairs_layer(k_compose_sample_pairs, i);
+  const float q = clamp01(safe_pow(plain, P.materials[n].dpt[k].exp_p / max(P.materials[n].dpt[k].exp_r, 1e-6)));
+  float expected = patch_expectation(n, k, q), second = patch_second_moment(n, k, q);
+  patch_samples(n, k, x_fp, y_fp, footprint, expected, second);
+  g_pair_expected[i] = expected;
+  g_pair_second[i] = second;
+}
+void sample_pairs(int64_t x_fp, int64_t y_fp, float footprint, float wts[TVT_MAX_MATERIALS]) {
+  const uint count = tvt_sample_pairs_count(k_compose_sample_pairs);
+  if (count > 0u) sample_pair(0, x_fp, y_fp, footprint, wts[tvt_sample_pairs_material(k_compose_sample_pairs, 0)]);
+  if (count > 1u) sample_pair(1, x_fp, y_fp, footprint, wts[tvt_sample_pairs_material(k_compose_sample_pairs, 1)]);
+  if (count > 2u) sample_pair(2, x_fp, y_fp, footprint, wts[tvt_sample_pairs_material(k_compose_sample_pairs, 2)]);
+  if (count > 3u) sample_pair(3, x_fp, y_fp, footprint, wts[tvt_sample_pairs_material(k_compose_sample_pairs, 3)]);
+}
+
 // DPT eq 4.1-4.4, Algorithms 2-3. Prefiltered: as reference_compositor.cpp dpt(). `plain_b` and
 // `plain_dev`: the blend map of the plain weight (and, prefiltered, its deviation), which the
 // caller has for the other modes as well.
@@ -660,6 +682,13 @@ void dpt(int n, int64_t x_fp, int64_t y_fp, float footprint, float plain, float 
         expected = patch_expectation(n, k, q);
         second = patch_second_moment(n, k, q);
         if (part(TVT_PART_DPT_SAMPLES)) patch_samples(n, k, x_fp, y_fp, footprint, expected, second);
+        // The pairs' samples, composed before the material loop (sample_pairs()): the same values.
+        for (int i = 0; i < TVT_SAMPLE_PAIRS_MAX; ++i)
+          if (uint(i) < tvt_sample_pairs_count(k_compose_sample_pairs) &&
+              n == tvt_sample_pairs_material(k_compose_sample_pairs, i) && k == tvt_sample_pairs_layer(k_compose_sample_pairs, i)) {
+            expected = g_pair_expected[i];
+            second = g_pair_second[i];
+          }
       }
       settled += point;
       mean += weight * expected;
@@ -736,6 +765,7 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
   float wts[TVT_MAX_MATERIALS];
   for (int n = 0; n < P.material_count; ++n)
     wts[n] = (material_mask & (1u << uint(n))) != 0u ? weight_at(P.materials[n].weight_layer, x_fp, y_fp) : 0.0;
+  if (prefiltered) sample_pairs(x_fp, y_fp, footprint, wts);
 
   int64_t g0x, g0y;
   float f0x, f0y;

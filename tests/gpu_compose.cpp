@@ -258,6 +258,10 @@ TEST_F(GpuCompose, SpecialisedPipelinesChangeNoByte) {
           if (with_dpt) {
             EXPECT_EQ(direct_parts(packed.value().params) & gpu::TVT_PART_DPT_CORNERS_WIDE,
                       log2_vt == 20u ? 0u : gpu::TVT_PART_DPT_CORNERS_WIDE);
+            // Some prefiltered mip samples its layers before the material loop.
+            bool pairs = false;
+            for (const PageId& page : pages) pairs = pairs || sample_pairs(packed.value().params, page.mip) != 0;
+            EXPECT_TRUE(pairs) << to_string(m) << " V = 2^" << log2_vt;
           }
           GpuComposerOptions plain;
           plain.specialise = false;
@@ -271,6 +275,35 @@ TEST_F(GpuCompose, SpecialisedPipelinesChangeNoByte) {
                                       << " V = 2^" << log2_vt << ": mip " << pages[i].mip;
         }
   }
+}
+
+// Every material with two sampled DPT layers: at some mips more (material, layer) pairs reach
+// their samples than sample_pairs() takes, and they stay in the material loop; at others four
+// are sampled before it. Either way every byte as the pipeline that keeps every path.
+TEST_F(GpuCompose, SampledLayersBeforeOrInTheMaterialLoopChangeNoByte) {
+  SceneDesc d = default_scene();
+  d.vt.log2_size = 16;
+  for (MaterialDesc& m : d.materials)
+    m.dpt.layers = {DptLayerDesc{37.3, 0.8, 1.3, 1.7, 0.5}, DptLayerDesc{5.9, 1.0, 1.0, 1.0, 0.3}};
+  auto assets = load_scene_assets(d);
+  ASSERT_TRUE(assets.ok()) << assets.error().message;
+  auto packed = pack_scene(assets.value(), options_for(Method::Dpt2, MipStrategy{1, true}));
+  ASSERT_TRUE(packed.ok()) << packed.error().message;
+  const gpu::TvtComposeParams& params = packed.value().params;
+  EXPECT_EQ(gpu::tvt_sample_pairs_count(sample_pairs(params, 3)), 4u);  // the small layer of four materials
+  EXPECT_EQ(sample_pairs(params, 5), 0u);                                // both layers: eight pairs
+  EXPECT_NE(prefiltered_parts(params, 5) & gpu::TVT_PART_DPT_SAMPLES, 0u);
+  EXPECT_EQ(gpu::tvt_sample_pairs_count(sample_pairs(params, 7)), 4u);  // the large layer of four
+  std::vector<PageId> pages;
+  for (uint32_t mip = 2; mip <= 8; ++mip) pages.push_back(PageId{mip, 5u >> (mip / 2), 7u >> (mip / 2)});
+  GpuComposerOptions plain;
+  plain.specialise = false;
+  auto specialised = GpuComposer::create(ctx(), packed.value(), uint32_t(pages.size()));
+  auto general = GpuComposer::create(ctx(), packed.value(), uint32_t(pages.size()), plain);
+  ASSERT_TRUE(specialised.ok() && general.ok());
+  const auto a = specialised.value()->compose_pages(pages).value();
+  const auto b = general.value()->compose_pages(pages).value();
+  for (size_t i = 0; i < pages.size(); ++i) EXPECT_TRUE(a[i] == b[i]) << "mip " << pages[i].mip;
 }
 
 // Level 0 half-way through the FBPB fade (fade0 = 0.5) with chipped holes: the prefiltered
@@ -436,6 +469,65 @@ TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureFadeWithTheFootprint)
   dpt.dpt[0].patch_texels = 64.0f;
   fbpb.period_fp = 0;
   EXPECT_EQ(prefiltered_parts(p, 4), TVT_PART_ALL);
+}
+
+// The (material, layer) pairs whose samples a mip reaches, sampled before the material loop:
+// in material and layer order, none where no layer samples, and none (the samples stay in the
+// loop) where there are more than the pre-pass takes or the numbers are not a validated scene's.
+TEST(SamplePairs, NameTheSampledLayersInOrderUpToTheMost) {
+  gpu::TvtComposeParams p{};
+  p.material_count = 3;
+  p.supersample = 1;
+  p.prefiltered = 1;
+  p.prefilter_patch_lo = 0.5f;
+  p.prefilter_patch_hi = 2.0f;
+  p.log2_vt = 20;
+  p.weight_width = 512;
+  p.weight_height = 512;
+  for (int n = 1; n < 4; ++n) {
+    gpu::TvtMaterial& m = p.materials[n];
+    m.mode = n == 2 ? gpu::TVT_MODE_FBPB_DPT : gpu::TVT_MODE_DPT;
+    m.resolution = 256;
+    m.period_fp = 256 * 256;
+    m.fbpb_fade_lo = 1.0f;
+    m.fbpb_fade_hi = 2.0f;
+    m.dpt_fade_lo = 1.0f;
+    m.dpt_fade_hi = 2.0f;
+    m.dpt_layer_count = n == 2 ? 1 : 2;
+    m.dpt[0].patch_texels = 64.0f;
+    m.dpt[1].patch_texels = 16.0f;
+  }
+  using namespace gpu;
+  const auto pairs = [](uint32_t encoded) {
+    std::vector<std::pair<int, int>> out;
+    for (int i = 0; i < int(tvt_sample_pairs_count(encoded)); ++i)
+      out.emplace_back(tvt_sample_pairs_material(encoded, i), tvt_sample_pairs_layer(encoded, i));
+    return out;
+  };
+  using Pairs = std::vector<std::pair<int, int>>;
+  // Footprint 8: both layers exact (8 and 2 texels of patch a texel), no samples.
+  EXPECT_EQ(sample_pairs(p, 3), 0u);
+  EXPECT_EQ(prefiltered_parts(p, 3) & TVT_PART_DPT_SAMPLES, 0u);
+  // Footprint 256: the 64-texel patches in expectation from samples (4 a side), the 16-texel ones
+  // in expectation alone (16 a side).
+  EXPECT_EQ(pairs(sample_pairs(p, 8)), (Pairs{{1, 0}, {2, 0}}));
+  // Footprint 32: the 16-texel patches (2 a side) sampled, the 64-texel ones exact.
+  EXPECT_EQ(pairs(sample_pairs(p, 5)), (Pairs{{1, 1}}));
+  // Footprint 64: one patch and four a side, both sampled; material 3 joins in at any mip.
+  EXPECT_EQ(pairs(sample_pairs(p, 6)), (Pairs{{1, 0}, {1, 1}, {2, 0}}));
+  p.material_count = 4;
+  EXPECT_EQ(pairs(sample_pairs(p, 8)), (Pairs{{1, 0}, {2, 0}, {3, 0}}));
+  EXPECT_EQ(sample_pairs(p, 6), 0u);  // five pairs: in the loop
+  EXPECT_NE(prefiltered_parts(p, 6) & TVT_PART_DPT_SAMPLES, 0u);
+  // A layer below the minification fade has no samples at any footprint.
+  p.materials[3].dpt[0].patch_texels = 0.5f;
+  EXPECT_EQ(pairs(sample_pairs(p, 6)), (Pairs{{1, 0}, {1, 1}, {2, 0}, {3, 1}}));
+  p.materials[3].dpt[0].patch_texels = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_EQ(sample_pairs(p, 6), 0u);
+  // The encoding holds every material and layer index.
+  uint32_t encoded = 0;
+  for (int i = 0; i < TVT_SAMPLE_PAIRS_MAX; ++i) encoded = tvt_sample_pairs_add(encoded, 15 - i, 3 - i);
+  EXPECT_EQ(pairs(encoded), (Pairs{{15, 3}, {14, 2}, {13, 1}, {12, 0}}));
 }
 
 TEST(PackScene, LodBiasIsTheMaterialLodAtOneLevel0Texel) {

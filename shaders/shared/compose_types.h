@@ -41,6 +41,20 @@ TVT_CONST int TVT_MODE_FBPB_DPT = 4;  // FBPB features over a DPT-shaped non-fea
 // implies TVT_COMPOSE_SPEC_PREFILTERED): the direct paths, which such a page never takes but a
 // device that runs both sides of a branch would pay for, are left out.
 #define TVT_COMPOSE_SPEC_ONLY_PREFILTERED 21
+// The DPT layers whose samples (TVT_PART_DPT_SAMPLES) a prefiltered page of this mip can
+// reach, when they are few: up to TVT_SAMPLE_PAIRS_MAX (material, layer) pairs, composed once
+// per texel before the material loop, each with its own material and layer as constants
+// (tvt_sample_pairs_*), instead of inside the loop for every material and layer; the composer
+// then clears TVT_PART_DPT_SAMPLES. 0: none.
+#define TVT_COMPOSE_SPEC_SAMPLE_PAIRS 22
+TVT_CONST int TVT_SAMPLE_PAIRS_MAX = 4;
+TVT_FN uint tvt_sample_pairs_count(uint pairs) { return pairs & 7u; }
+TVT_FN int tvt_sample_pairs_material(uint pairs, int i) { return int((pairs >> uint(3 + 6 * i)) & 15u); }
+TVT_FN int tvt_sample_pairs_layer(uint pairs, int i) { return int((pairs >> uint(7 + 6 * i)) & 3u); }
+TVT_FN uint tvt_sample_pairs_add(uint pairs, int material, int layer) {
+  const uint i = pairs & 7u;
+  return (pairs & ~7u) + (i + 1u) + ((uint(material) & 15u) << (3u + 6u * i)) + ((uint(layer) & 3u) << (7u + 6u * i));
+}
 TVT_CONST uint TVT_PART_DPT_POINT = 1u;        // a DPT layer's point value (exact share > 0)
 TVT_CONST uint TVT_PART_DPT_EXPECT = 2u;       // a DPT layer's expectation (exact share < 1)
 TVT_CONST uint TVT_PART_DPT_SAMPLES = 4u;      // ... from samples (fewer than _HI patches a side)
