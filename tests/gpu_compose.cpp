@@ -332,12 +332,15 @@ TEST_F(GpuCompose, EveryVariantOfTheVtsMipsIsMadeBeforeTheFirstPage) {
   ASSERT_TRUE(packed.ok()) << packed.error().message;
   const gpu::TvtComposeParams& params = packed.value().params;
   const uint32_t top = uint32_t(params.log2_vt) - uint32_t(std::countr_zero(uint32_t(params.page_texels)));
-  std::set<uint32_t> parts;
-  for (uint32_t mip = 1; mip <= top; ++mip) parts.insert(prefiltered_parts(params, mip));
+  std::set<std::pair<uint32_t, uint32_t>> parts;  // what a mip's variant is specialised to
+  for (uint32_t mip = 1; mip <= top; ++mip) {
+    const uint32_t pairs = sample_pairs(params, mip);
+    parts.emplace(prefiltered_parts(params, mip) & (pairs ? ~gpu::TVT_PART_DPT_SAMPLES : ~0u), pairs);
+  }
   ASSERT_GE(parts.size(), 2u);  // else this scene would not tell
   auto c = GpuComposer::create(ctx(), packed.value(), 4);
   ASSERT_TRUE(c.ok()) << c.error().message;
-  EXPECT_EQ(c.value()->pipeline_count(), 1 + parts.size());  // direct, and one per distinct set of parts
+  EXPECT_EQ(c.value()->pipeline_count(), 1 + parts.size());  // direct, and one per distinct set of parts and pairs
   std::vector<PageId> pages;
   for (uint32_t mip = 0; mip <= top; ++mip) pages.push_back(PageId{mip, 0, 0});
   ASSERT_TRUE(c.value()->compose_pages(pages).ok());
