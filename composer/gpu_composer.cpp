@@ -79,7 +79,7 @@ bool small_coordinates(const gpu::TvtComposeParams& p) {
 namespace {
 // prefiltered_parts() and sample_pairs(): the parts of mip `mip`, and every (material, layer)
 // pair whose samples it reaches, in material and layer order (`pairs`, at most
-// TVT_SAMPLE_PAIRS_MAX of them, `more` beyond).
+// TVT_SAMPLE_PAIRS_MAX of them with narrow lattices; `more`: others).
 uint32_t prefiltered_reach(const gpu::TvtComposeParams& p, uint32_t mip, uint32_t* pairs, bool* more) {
   *pairs = 0;
   *more = false;
@@ -113,7 +113,8 @@ uint32_t prefiltered_reach(const gpu::TvtComposeParams& p, uint32_t mip, uint32_
         const double patches = footprint / std::max(texels, 1e-6);
         if (ramp_may_be_below_one(patches, gpu::TVT_PATCH_SAMPLES_LO, gpu::TVT_PATCH_SAMPLES_HI)) {
           parts |= gpu::TVT_PART_DPT_SAMPLES;
-          if (int(gpu::tvt_sample_pairs_count(*pairs)) < gpu::TVT_SAMPLE_PAIRS_MAX)
+          if (int(gpu::tvt_sample_pairs_count(*pairs)) < gpu::TVT_SAMPLE_PAIRS_MAX &&
+              sample_lattice_is_narrow(p, footprint, texels))
             *pairs = gpu::tvt_sample_pairs_add(*pairs, n, k);
           else
             *more = true;

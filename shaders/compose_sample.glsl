@@ -640,20 +640,26 @@ void patch_samples(int n, int k, int64_t x_fp, int64_t y_fp, float footprint, in
 // material and layer as constants (a device that runs every branch pays for the samples of
 // these pairs alone, not of every material and layer).
 float g_pair_expected[TVT_SAMPLE_PAIRS_MAX], g_pair_second[TVT_SAMPLE_PAIRS_MAX];
-void sample_pair(int i, int64_t x_fp, int64_t y_fp, float footprint, float plain) {
+void sample_pair(int i, int64_t x_fp, int64_t y_fp, float footprint, float plain, uint material_mask) {
   const int n = tvt_sample_pairs_material(k_compose_sample_pairs, i), k = tvt_sample_pairs_layer(k_compose_sample_pairs, i);
+  g_pair_expected[i] = 0.0;
+  g_pair_second[i] = 0.0;
+  // Only where dpt() reads them: the material not culled, the layer in expectation here (as
+  // there; a texel with no share of it skips the samples, whose lattices are dear far out).
+  const float present = ramp(P.materials[n].dpt[k].patch_texels, P.materials[n].dpt_fade_lo, P.materials[n].dpt_fade_hi);
+  const float exact =
+      ramp(per_footprint(P.materials[n].dpt[k].patch_texels, footprint), P.prefilter_patch_lo, P.prefilter_patch_hi);
+  if ((material_mask & (1u << uint(n))) == 0u || present <= 0.0 || !(present * (1.0 - exact) > 0.0)) return;
   const float q = clamp01(safe_pow(plain, P.materials[n].dpt[k].exp_p / max(P.materials[n].dpt[k].exp_r, 1e-6)));
   float expected = patch_expectation(n, k, q), second = patch_second_moment(n, k, q);
   patch_samples(n, k, x_fp, y_fp, footprint, expected, second);
   g_pair_expected[i] = expected;
   g_pair_second[i] = second;
 }
-void sample_pairs(int64_t x_fp, int64_t y_fp, float footprint, float wts[TVT_MAX_MATERIALS]) {
+void sample_pairs(int64_t x_fp, int64_t y_fp, float footprint, float wts[TVT_MAX_MATERIALS], uint material_mask) {
   const uint count = tvt_sample_pairs_count(k_compose_sample_pairs);
-  if (count > 0u) sample_pair(0, x_fp, y_fp, footprint, wts[tvt_sample_pairs_material(k_compose_sample_pairs, 0)]);
-  if (count > 1u) sample_pair(1, x_fp, y_fp, footprint, wts[tvt_sample_pairs_material(k_compose_sample_pairs, 1)]);
-  if (count > 2u) sample_pair(2, x_fp, y_fp, footprint, wts[tvt_sample_pairs_material(k_compose_sample_pairs, 2)]);
-  if (count > 3u) sample_pair(3, x_fp, y_fp, footprint, wts[tvt_sample_pairs_material(k_compose_sample_pairs, 3)]);
+  if (count > 0u) sample_pair(0, x_fp, y_fp, footprint, wts[tvt_sample_pairs_material(k_compose_sample_pairs, 0)], material_mask);
+  if (count > 1u) sample_pair(1, x_fp, y_fp, footprint, wts[tvt_sample_pairs_material(k_compose_sample_pairs, 1)], material_mask);
 }
 
 // DPT eq 4.1-4.4, Algorithms 2-3. Prefiltered: as reference_compositor.cpp dpt(). `plain_b` and
@@ -765,7 +771,7 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
   float wts[TVT_MAX_MATERIALS];
   for (int n = 0; n < P.material_count; ++n)
     wts[n] = (material_mask & (1u << uint(n))) != 0u ? weight_at(P.materials[n].weight_layer, x_fp, y_fp) : 0.0;
-  if (prefiltered) sample_pairs(x_fp, y_fp, footprint, wts);
+  if (prefiltered) sample_pairs(x_fp, y_fp, footprint, wts, material_mask);
 
   int64_t g0x, g0y;
   float f0x, f0y;

@@ -258,10 +258,11 @@ TEST_F(GpuCompose, SpecialisedPipelinesChangeNoByte) {
           if (with_dpt) {
             EXPECT_EQ(direct_parts(packed.value().params) & gpu::TVT_PART_DPT_CORNERS_WIDE,
                       log2_vt == 20u ? 0u : gpu::TVT_PART_DPT_CORNERS_WIDE);
-            // Some prefiltered mip samples its layers before the material loop.
+            // Some prefiltered mip samples its layers before the material loop (not dpt1 at
+            // V = 2^16: its one layer's lattices may all span three weight texels there).
             bool pairs = false;
             for (const PageId& page : pages) pairs = pairs || sample_pairs(packed.value().params, page.mip) != 0;
-            EXPECT_TRUE(pairs) << to_string(m) << " V = 2^" << log2_vt;
+            EXPECT_EQ(pairs, log2_vt == 20u || m != Method::Dpt1) << to_string(m) << " V = 2^" << log2_vt;
           }
           GpuComposerOptions plain;
           plain.specialise = false;
@@ -277,23 +278,27 @@ TEST_F(GpuCompose, SpecialisedPipelinesChangeNoByte) {
   }
 }
 
-// Every material with two sampled DPT layers: at some mips more (material, layer) pairs reach
-// their samples than sample_pairs() takes, and they stay in the material loop; at others four
-// are sampled before it. Either way every byte as the pipeline that keeps every path.
+// Grass and mud with two sampled DPT layers each: at some mips more (material, layer) pairs
+// reach their samples than sample_pairs() takes, or their lattices may be wide, and they stay in
+// the material loop; at others two are sampled before it. Either way every byte as the pipeline
+// that keeps every path.
 TEST_F(GpuCompose, SampledLayersBeforeOrInTheMaterialLoopChangeNoByte) {
   SceneDesc d = default_scene();
-  d.vt.log2_size = 16;
-  for (MaterialDesc& m : d.materials)
-    m.dpt.layers = {DptLayerDesc{37.3, 0.8, 1.3, 1.7, 0.5}, DptLayerDesc{5.9, 1.0, 1.0, 1.0, 0.3}};
+  d.vt.log2_size = 16;  // a weight texel every 128 level-0 texels
+  for (MaterialDesc& m : d.materials) m.dpt.layers.clear();
+  for (const size_t n : {1u, 2u})
+    d.materials[n].dpt.layers = {DptLayerDesc{37.3, 0.8, 1.3, 1.7, 0.5}, DptLayerDesc{5.9, 1.0, 1.0, 1.0, 0.3}};
   auto assets = load_scene_assets(d);
   ASSERT_TRUE(assets.ok()) << assets.error().message;
   auto packed = pack_scene(assets.value(), options_for(Method::Dpt2, MipStrategy{1, true}));
   ASSERT_TRUE(packed.ok()) << packed.error().message;
   const gpu::TvtComposeParams& params = packed.value().params;
-  EXPECT_EQ(gpu::tvt_sample_pairs_count(sample_pairs(params, 3)), 4u);  // the small layer of four materials
-  EXPECT_EQ(sample_pairs(params, 5), 0u);                                // both layers: eight pairs
+  for (const uint32_t mip : {3u, 4u})  // the small layer of both materials
+    EXPECT_EQ(gpu::tvt_sample_pairs_count(sample_pairs(params, mip)), 2u) << mip;
+  EXPECT_EQ(sample_pairs(params, 5), 0u);  // both layers of both: four pairs
   EXPECT_NE(prefiltered_parts(params, 5) & gpu::TVT_PART_DPT_SAMPLES, 0u);
-  EXPECT_EQ(gpu::tvt_sample_pairs_count(sample_pairs(params, 7)), 4u);  // the large layer of four
+  EXPECT_EQ(sample_pairs(params, 6), 0u);  // the large layers, whose lattices may span 3 weight texels
+  EXPECT_NE(prefiltered_parts(params, 6) & gpu::TVT_PART_DPT_SAMPLES_WIDE, 0u);
   std::vector<PageId> pages;
   for (uint32_t mip = 2; mip <= 8; ++mip) pages.push_back(PageId{mip, 5u >> (mip / 2), 7u >> (mip / 2)});
   GpuComposerOptions plain;
@@ -476,7 +481,8 @@ TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureFadeWithTheFootprint)
 
 // The (material, layer) pairs whose samples a mip reaches, sampled before the material loop:
 // in material and layer order, none where no layer samples, and none (the samples stay in the
-// loop) where there are more than the pre-pass takes or the numbers are not a validated scene's.
+// loop) where there are more than the pre-pass takes, a lattice may be wide, or the numbers are
+// not a validated scene's.
 TEST(SamplePairs, NameTheSampledLayersInOrderUpToTheMost) {
   gpu::TvtComposeParams p{};
   p.material_count = 3;
@@ -484,7 +490,7 @@ TEST(SamplePairs, NameTheSampledLayersInOrderUpToTheMost) {
   p.prefiltered = 1;
   p.prefilter_patch_lo = 0.5f;
   p.prefilter_patch_hi = 2.0f;
-  p.log2_vt = 20;
+  p.log2_vt = 20;  // a weight texel every 2048 level-0 texels: the lattices below are narrow
   p.weight_width = 512;
   p.weight_height = 512;
   for (int n = 1; n < 4; ++n) {
@@ -508,6 +514,7 @@ TEST(SamplePairs, NameTheSampledLayersInOrderUpToTheMost) {
     return out;
   };
   using Pairs = std::vector<std::pair<int, int>>;
+  ASSERT_EQ(TVT_SAMPLE_PAIRS_MAX, 2);
   // Footprint 8: both layers exact (8 and 2 texels of patch a texel), no samples.
   EXPECT_EQ(sample_pairs(p, 3), 0u);
   EXPECT_EQ(prefiltered_parts(p, 3) & TVT_PART_DPT_SAMPLES, 0u);
@@ -516,21 +523,27 @@ TEST(SamplePairs, NameTheSampledLayersInOrderUpToTheMost) {
   EXPECT_EQ(pairs(sample_pairs(p, 8)), (Pairs{{1, 0}, {2, 0}}));
   // Footprint 32: the 16-texel patches (2 a side) sampled, the 64-texel ones exact.
   EXPECT_EQ(pairs(sample_pairs(p, 5)), (Pairs{{1, 1}}));
-  // Footprint 64: one patch and four a side, both sampled; material 3 joins in at any mip.
-  EXPECT_EQ(pairs(sample_pairs(p, 6)), (Pairs{{1, 0}, {1, 1}, {2, 0}}));
-  p.material_count = 4;
-  EXPECT_EQ(pairs(sample_pairs(p, 8)), (Pairs{{1, 0}, {2, 0}, {3, 0}}));
-  EXPECT_EQ(sample_pairs(p, 6), 0u);  // five pairs: in the loop
+  // Footprint 64: one patch and four a side, both sampled: three pairs, in the loop.
+  EXPECT_EQ(sample_pairs(p, 6), 0u);
   EXPECT_NE(prefiltered_parts(p, 6) & TVT_PART_DPT_SAMPLES, 0u);
-  // A layer below the minification fade has no samples at any footprint.
-  p.materials[3].dpt[0].patch_texels = 0.5f;
-  EXPECT_EQ(pairs(sample_pairs(p, 6)), (Pairs{{1, 0}, {1, 1}, {2, 0}, {3, 1}}));
-  p.materials[3].dpt[0].patch_texels = std::numeric_limits<float>::quiet_NaN();
+  // Material 2's layer below the minification fade has no samples at any footprint.
+  p.materials[2].dpt[0].patch_texels = 0.5f;
+  EXPECT_EQ(pairs(sample_pairs(p, 6)), (Pairs{{1, 0}, {1, 1}}));
+  EXPECT_EQ(pairs(sample_pairs(p, 8)), (Pairs{{1, 0}}));
+  // A weight texel every 256 level-0 texels: the lattice of footprint 256 (256 + 128 texels)
+  // may span three, which only the loop's general path takes; footprint 64's still fit.
+  p.weight_width = 4096;
+  EXPECT_EQ(sample_pairs(p, 8), 0u);
+  EXPECT_EQ(pairs(sample_pairs(p, 6)), (Pairs{{1, 0}, {1, 1}}));
+  p.weight_width = 512;
+  p.materials[2].dpt[0].patch_texels = std::numeric_limits<float>::quiet_NaN();
   EXPECT_EQ(sample_pairs(p, 6), 0u);
   // The encoding holds every material and layer index.
   uint32_t encoded = 0;
   for (int i = 0; i < TVT_SAMPLE_PAIRS_MAX; ++i) encoded = tvt_sample_pairs_add(encoded, 15 - i, 3 - i);
-  EXPECT_EQ(pairs(encoded), (Pairs{{15, 3}, {14, 2}, {13, 1}, {12, 0}}));
+  EXPECT_EQ(pairs(encoded), (Pairs{{15, 3}, {14, 2}}));
+  encoded = tvt_sample_pairs_add(tvt_sample_pairs_add(0, 7, 1), 9, 2);
+  EXPECT_EQ(pairs(encoded), (Pairs{{7, 1}, {9, 2}}));
 }
 
 TEST(PackScene, LodBiasIsTheMaterialLodAtOneLevel0Texel) {

@@ -42,12 +42,13 @@ TVT_CONST int TVT_MODE_FBPB_DPT = 4;  // FBPB features over a DPT-shaped non-fea
 // device that runs both sides of a branch would pay for, are left out.
 #define TVT_COMPOSE_SPEC_ONLY_PREFILTERED 21
 // The DPT layers whose samples (TVT_PART_DPT_SAMPLES) a prefiltered page of this mip can
-// reach, when they are few: up to TVT_SAMPLE_PAIRS_MAX (material, layer) pairs, composed once
-// per texel before the material loop, each with its own material and layer as constants
-// (tvt_sample_pairs_*), instead of inside the loop for every material and layer; the composer
-// then clears TVT_PART_DPT_SAMPLES. 0: none.
+// reach, when they are few and their lattices narrow: up to TVT_SAMPLE_PAIRS_MAX (material,
+// layer) pairs, composed once per texel before the material loop, each with its own material
+// and layer as constants (tvt_sample_pairs_*), instead of inside the loop for every material
+// and layer; the composer then clears TVT_PART_DPT_SAMPLES. 0: none. (Each pair is a copy of
+// the samples' code, which a CPU driver compiles at length: hence few.)
 #define TVT_COMPOSE_SPEC_SAMPLE_PAIRS 22
-TVT_CONST int TVT_SAMPLE_PAIRS_MAX = 4;
+TVT_CONST int TVT_SAMPLE_PAIRS_MAX = 2;
 TVT_FN uint tvt_sample_pairs_count(uint pairs) { return pairs & 7u; }
 TVT_FN int tvt_sample_pairs_material(uint pairs, int i) { return int((pairs >> uint(3 + 6 * i)) & 15u); }
 TVT_FN int tvt_sample_pairs_layer(uint pairs, int i) { return int((pairs >> uint(7 + 6 * i)) & 3u); }
