@@ -97,7 +97,10 @@ uint32_t prefiltered_reach(const gpu::TvtComposeParams& p, uint32_t mip, uint32_
                   std::isfinite(double(m.lod_bias)) && m.period_fp > 0;
     for (int k = 0; k < std::min(m.dpt_layer_count, gpu::TVT_MAX_DPT_LAYERS); ++k)
       finite = finite && std::isfinite(double(m.dpt[k].patch_texels));
-    if (!finite) return gpu::TVT_PART_ALL;  // not a validated scene: keep every part
+    if (!finite) {  // not a validated scene: keep every part, the samples in the loop
+      *more = true;
+      return gpu::TVT_PART_ALL;
+    }
     for (int k = 0; k < std::min(m.dpt_layer_count, gpu::TVT_MAX_DPT_LAYERS); ++k) {  // dpt()
       if (!dpt_layer_present(m, k)) continue;
       const double texels = m.dpt[k].patch_texels;
@@ -113,12 +116,12 @@ uint32_t prefiltered_reach(const gpu::TvtComposeParams& p, uint32_t mip, uint32_
         const double patches = footprint / std::max(texels, 1e-6);
         if (ramp_may_be_below_one(patches, gpu::TVT_PATCH_SAMPLES_LO, gpu::TVT_PATCH_SAMPLES_HI)) {
           parts |= gpu::TVT_PART_DPT_SAMPLES;
-          if (int(gpu::tvt_sample_pairs_count(*pairs)) < gpu::TVT_SAMPLE_PAIRS_MAX &&
-              sample_lattice_is_narrow(p, footprint, texels))
+          const bool narrow = sample_lattice_is_narrow(p, footprint, texels);
+          if (!narrow) parts |= gpu::TVT_PART_DPT_SAMPLES_WIDE;
+          if (narrow && int(gpu::tvt_sample_pairs_count(*pairs)) < gpu::TVT_SAMPLE_PAIRS_MAX)
             *pairs = gpu::tvt_sample_pairs_add(*pairs, n, k);
           else
             *more = true;
-          if (!sample_lattice_is_narrow(p, footprint, texels)) parts |= gpu::TVT_PART_DPT_SAMPLES_WIDE;
         }
       }
     }
@@ -153,9 +156,8 @@ uint32_t prefiltered_parts(const gpu::TvtComposeParams& p, uint32_t mip) {
 uint32_t sample_pairs(const gpu::TvtComposeParams& p, uint32_t mip) {
   uint32_t pairs = 0;
   bool more = false;
-  const uint32_t parts = prefiltered_reach(p, mip, &pairs, &more);
-  // Unvalidated numbers keep every part, in the loop.
-  return more || parts == gpu::TVT_PART_ALL ? 0u : pairs;
+  prefiltered_reach(p, mip, &pairs, &more);
+  return more ? 0u : pairs;
 }
 
 uint32_t direct_parts(const gpu::TvtComposeParams& p) {
@@ -348,7 +350,8 @@ Status GpuComposer::record(VkCommandBuffer cmd, std::span<const PageJob> jobs) {
     size_t end = first;
     while (end < order.size() && order[end].first == order[first].first) ++end;
     const uint64_t k = order[first].first;
-    const vk::ComputePipeline* pipeline = k == 0 ? variant(false, direct_parts_) : variant(true, uint32_t(k - 1), uint32_t((k - 1) >> 32));
+    const vk::ComputePipeline* pipeline =
+        k == 0 ? variant(false, direct_parts_) : variant(true, uint32_t(k - 1), uint32_t((k - 1) >> 32));
     if (!pipeline) return context_->status().error();
     context_->fn().vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline->handle());
     const VkDescriptorSet set = descriptors_.handle();

@@ -56,8 +56,9 @@ uint32_t prefiltered_parts(const gpu::TvtComposeParams& params, uint32_t mip);
 // (TVT_COMPOSE_SPEC_SAMPLE_PAIRS, tvt_sample_pairs_*), in material and layer order, where
 // prefiltered_parts() has TVT_PART_DPT_SAMPLES, they are at most TVT_SAMPLE_PAIRS_MAX and
 // their sample lattices narrow (no TVT_PART_DPT_SAMPLES_WIDE); else 0, and the samples stay in
-// the material loop. The composer's variant for that mip samples
-// these pairs once a texel before the loop, each with its material and layer as constants.
+// the material loop (also for numbers no validated scene has). The composer's variant for that
+// mip samples these pairs once a texel before the loop, each with its material and layer as
+// constants.
 uint32_t sample_pairs(const gpu::TvtComposeParams& params, uint32_t mip);
 
 // The TVT_PART_* bits of direct pages (every mip under the direct and supersampled

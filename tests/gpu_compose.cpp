@@ -84,6 +84,20 @@ class GpuCompose : public GpuTest {
     EXPECT_GE(fraction, 0.999) << what << ": max difference " << total.max_diff << "/255";
     RecordProperty(what, std::to_string(fraction));
   }
+
+  // Composes `pages` through the variants specialised to the scene and each mip, and through
+  // one pipeline that keeps every path; asserts every byte is the same.
+  void expect_specialised_unchanged(const PackedScene& packed, const std::vector<PageId>& pages,
+                                    const std::string& what) {
+    GpuComposerOptions plain;
+    plain.specialise = false;
+    auto specialised = GpuComposer::create(ctx(), packed, uint32_t(pages.size()));
+    auto general = GpuComposer::create(ctx(), packed, uint32_t(pages.size()), plain);
+    ASSERT_TRUE(specialised.ok() && general.ok());
+    const auto a = specialised.value()->compose_pages(pages).value();
+    const auto b = general.value()->compose_pages(pages).value();
+    for (size_t i = 0; i < pages.size(); ++i) EXPECT_TRUE(a[i] == b[i]) << what << ": mip " << pages[i].mip;
+  }
 };
 
 }  // namespace
@@ -264,16 +278,9 @@ TEST_F(GpuCompose, SpecialisedPipelinesChangeNoByte) {
             for (const PageId& page : pages) pairs = pairs || sample_pairs(packed.value().params, page.mip) != 0;
             EXPECT_EQ(pairs, log2_vt == 20u || m != Method::Dpt1) << to_string(m) << " V = 2^" << log2_vt;
           }
-          GpuComposerOptions plain;
-          plain.specialise = false;
-          auto specialised = GpuComposer::create(ctx(), packed.value(), uint32_t(pages.size()));
-          auto general = GpuComposer::create(ctx(), packed.value(), uint32_t(pages.size()), plain);
-          ASSERT_TRUE(specialised.ok() && general.ok());
-          const auto a = specialised.value()->compose_pages(pages).value();
-          const auto b = general.value()->compose_pages(pages).value();
-          for (size_t i = 0; i < pages.size(); ++i)
-            EXPECT_TRUE(a[i] == b[i]) << to_string(m) << " " << to_string(strategy) << (hex ? " hex" : "")
-                                      << " V = 2^" << log2_vt << ": mip " << pages[i].mip;
+          expect_specialised_unchanged(packed.value(), pages,
+                                       std::string(to_string(m)) + " " + to_string(strategy) + (hex ? " hex" : "") +
+                                           " V = 2^" + std::to_string(log2_vt));
         }
   }
 }
@@ -301,14 +308,7 @@ TEST_F(GpuCompose, SampledLayersBeforeOrInTheMaterialLoopChangeNoByte) {
   EXPECT_NE(prefiltered_parts(params, 6) & gpu::TVT_PART_DPT_SAMPLES_WIDE, 0u);
   std::vector<PageId> pages;
   for (uint32_t mip = 2; mip <= 8; ++mip) pages.push_back(PageId{mip, 5u >> (mip / 2), 7u >> (mip / 2)});
-  GpuComposerOptions plain;
-  plain.specialise = false;
-  auto specialised = GpuComposer::create(ctx(), packed.value(), uint32_t(pages.size()));
-  auto general = GpuComposer::create(ctx(), packed.value(), uint32_t(pages.size()), plain);
-  ASSERT_TRUE(specialised.ok() && general.ok());
-  const auto a = specialised.value()->compose_pages(pages).value();
-  const auto b = general.value()->compose_pages(pages).value();
-  for (size_t i = 0; i < pages.size(); ++i) EXPECT_TRUE(a[i] == b[i]) << "mip " << pages[i].mip;
+  expect_specialised_unchanged(packed.value(), pages, "grass and mud sampled");
 }
 
 // Level 0 half-way through the FBPB fade (fade0 = 0.5) with chipped holes: the prefiltered
@@ -379,16 +379,25 @@ TEST_F(GpuCompose, AnUnknownModeKeepsEveryPath) {
   EXPECT_TRUE(c.value()->compose_pages(pages).ok());
 }
 
-TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureFadeWithTheFootprint) {
+namespace {
+// Prefiltered parameters of three materials (the two above the base for the caller to set), V =
+// 2^20 with a weight texel every 2048 level-0 texels.
+gpu::TvtComposeParams prefiltered_params() {
   gpu::TvtComposeParams p{};
   p.material_count = 3;
   p.supersample = 1;
   p.prefiltered = 1;
   p.prefilter_patch_lo = 0.5f;
   p.prefilter_patch_hi = 2.0f;
-  p.log2_vt = 20;  // a weight texel every 2048 level-0 texels: every sample lattice below is narrower
+  p.log2_vt = 20;
   p.weight_width = 512;
   p.weight_height = 512;
+  return p;
+}
+}  // namespace
+
+TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureFadeWithTheFootprint) {
+  gpu::TvtComposeParams p = prefiltered_params();  // every sample lattice below is narrower than a weight texel
   gpu::TvtMaterial& dpt = p.materials[1];
   dpt.mode = gpu::TVT_MODE_DPT;
   dpt.resolution = 256;
@@ -484,15 +493,7 @@ TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureFadeWithTheFootprint)
 // loop) where there are more than the pre-pass takes, a lattice may be wide, or the numbers are
 // not a validated scene's.
 TEST(SamplePairs, NameTheSampledLayersInOrderUpToTheMost) {
-  gpu::TvtComposeParams p{};
-  p.material_count = 3;
-  p.supersample = 1;
-  p.prefiltered = 1;
-  p.prefilter_patch_lo = 0.5f;
-  p.prefilter_patch_hi = 2.0f;
-  p.log2_vt = 20;  // a weight texel every 2048 level-0 texels: the lattices below are narrow
-  p.weight_width = 512;
-  p.weight_height = 512;
+  gpu::TvtComposeParams p = prefiltered_params();  // the lattices below are narrow
   for (int n = 1; n < 4; ++n) {
     gpu::TvtMaterial& m = p.materials[n];
     m.mode = n == 2 ? gpu::TVT_MODE_FBPB_DPT : gpu::TVT_MODE_DPT;
