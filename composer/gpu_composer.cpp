@@ -77,12 +77,12 @@ bool small_coordinates(const gpu::TvtComposeParams& p) {
 }
 
 namespace {
-// prefiltered_parts() and sample_pairs(): the parts of mip `mip`, and every (material, layer)
-// pair whose samples it reaches, in material and layer order (`pairs`, at most
-// TVT_SAMPLE_PAIRS_MAX of them with narrow lattices; `more`: others).
-uint32_t prefiltered_reach(const gpu::TvtComposeParams& p, uint32_t mip, uint32_t* pairs, bool* more) {
+// prefiltered_parts() and sample_pairs(): the parts of mip `mip`, and in `pairs` every
+// (material, layer) pair whose samples it reaches, in material and layer order, where they are at
+// most TVT_SAMPLE_PAIRS_MAX with narrow lattices (else 0).
+uint32_t prefiltered_reach(const gpu::TvtComposeParams& p, uint32_t mip, uint32_t* pairs) {
   *pairs = 0;
-  *more = false;
+  bool more = false;  // a sampled layer the pairs do not take
   // compose.comp's footprint: 2^mip level-0 texels over at most 2^mip sub-samples a side.
   const double s = std::min(std::max(double(p.supersample), 1.0), std::ldexp(1.0, int(std::min(mip, 62u))));
   const double footprint = std::max(std::ldexp(1.0, int(std::min(mip, 62u))) / s, 1.0 / 256.0);
@@ -98,7 +98,7 @@ uint32_t prefiltered_reach(const gpu::TvtComposeParams& p, uint32_t mip, uint32_
     for (int k = 0; k < std::min(m.dpt_layer_count, gpu::TVT_MAX_DPT_LAYERS); ++k)
       finite = finite && std::isfinite(double(m.dpt[k].patch_texels));
     if (!finite) {  // not a validated scene: keep every part, the samples in the loop
-      *more = true;
+      *pairs = 0;
       return gpu::TVT_PART_ALL;
     }
     for (int k = 0; k < std::min(m.dpt_layer_count, gpu::TVT_MAX_DPT_LAYERS); ++k) {  // dpt()
@@ -121,7 +121,7 @@ uint32_t prefiltered_reach(const gpu::TvtComposeParams& p, uint32_t mip, uint32_
           if (narrow && int(gpu::tvt_sample_pairs_count(*pairs)) < gpu::TVT_SAMPLE_PAIRS_MAX)
             *pairs = gpu::tvt_sample_pairs_add(*pairs, n, k);
           else
-            *more = true;
+            more = true;
         }
       }
     }
@@ -143,21 +143,20 @@ uint32_t prefiltered_reach(const gpu::TvtComposeParams& p, uint32_t mip, uint32_
       }
     }
   }
+  if (more) *pairs = 0;  // the samples stay in the loop
   return parts;
 }
 }  // namespace
 
 uint32_t prefiltered_parts(const gpu::TvtComposeParams& p, uint32_t mip) {
   uint32_t pairs = 0;
-  bool more = false;
-  return prefiltered_reach(p, mip, &pairs, &more);
+  return prefiltered_reach(p, mip, &pairs);
 }
 
 uint32_t sample_pairs(const gpu::TvtComposeParams& p, uint32_t mip) {
   uint32_t pairs = 0;
-  bool more = false;
-  prefiltered_reach(p, mip, &pairs, &more);
-  return more ? 0u : pairs;
+  prefiltered_reach(p, mip, &pairs);
+  return pairs;
 }
 
 uint32_t direct_parts(const gpu::TvtComposeParams& p) {
@@ -257,9 +256,10 @@ void GpuComposer::derive_specialisation() {
   }
   spec_small_ = small_coordinates(params_);
   for (uint32_t mip = 0; mip < parts_by_mip_.size(); ++mip) {
-    // The layers sample_pairs() names are sampled before the material loop, not in it.
-    pairs_by_mip_[mip] = sample_pairs(params_, mip);
-    parts_by_mip_[mip] = prefiltered_parts(params_, mip) & (pairs_by_mip_[mip] ? ~gpu::TVT_PART_DPT_SAMPLES : ~0u);
+    // prefiltered_parts() and sample_pairs() from one pass over the layers; the layers the
+    // pairs name are sampled before the material loop, not in it.
+    const uint32_t parts = prefiltered_reach(params_, mip, &pairs_by_mip_[mip]);
+    parts_by_mip_[mip] = parts & (pairs_by_mip_[mip] ? ~gpu::TVT_PART_DPT_SAMPLES : ~0u);
   }
   direct_parts_ = direct_parts(params_);
 }

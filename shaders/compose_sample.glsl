@@ -640,18 +640,32 @@ void patch_samples(int n, int k, int64_t x_fp, int64_t y_fp, float footprint, in
 // material and layer as constants (a device that runs every branch pays for the samples of
 // these pairs alone, not of every material and layer).
 float g_pair_expected[TVT_SAMPLE_PAIRS_MAX], g_pair_second[TVT_SAMPLE_PAIRS_MAX];
+
+// Prefiltered DPT layer k of material n (dpt()): how much level 0 shows it (`present`, its
+// minification fade at one texel) and its exact share at this footprint.
+void layer_shares(int n, int k, float footprint, out float present, out float exact) {
+  present = ramp(P.materials[n].dpt[k].patch_texels, P.materials[n].dpt_fade_lo, P.materials[n].dpt_fade_hi);
+  exact = ramp(per_footprint(P.materials[n].dpt[k].patch_texels, footprint), P.prefilter_patch_lo, P.prefilter_patch_hi);
+}
+// Its value's mean and second moment over many patch cells at plain weight `plain` (the
+// expectation before any samples).
+void layer_expectation(int n, int k, float plain, out float expected, out float second) {
+  const float q = clamp01(safe_pow(plain, P.materials[n].dpt[k].exp_p / max(P.materials[n].dpt[k].exp_r, 1e-6)));
+  expected = patch_expectation(n, k, q);
+  second = patch_second_moment(n, k, q);
+}
+
 void sample_pair(int i, int64_t x_fp, int64_t y_fp, float footprint, float plain, uint material_mask) {
   const int n = tvt_sample_pairs_material(k_compose_sample_pairs, i), k = tvt_sample_pairs_layer(k_compose_sample_pairs, i);
   g_pair_expected[i] = 0.0;
   g_pair_second[i] = 0.0;
   // Only where dpt() reads them: the material not culled, the layer in expectation here (as
   // there; a texel with no share of it skips the samples, whose lattices are dear far out).
-  const float present = ramp(P.materials[n].dpt[k].patch_texels, P.materials[n].dpt_fade_lo, P.materials[n].dpt_fade_hi);
-  const float exact =
-      ramp(per_footprint(P.materials[n].dpt[k].patch_texels, footprint), P.prefilter_patch_lo, P.prefilter_patch_hi);
+  float present, exact;
+  layer_shares(n, k, footprint, present, exact);
   if ((material_mask & (1u << uint(n))) == 0u || present <= 0.0 || !(present * (1.0 - exact) > 0.0)) return;
-  const float q = clamp01(safe_pow(plain, P.materials[n].dpt[k].exp_p / max(P.materials[n].dpt[k].exp_r, 1e-6)));
-  float expected = patch_expectation(n, k, q), second = patch_second_moment(n, k, q);
+  float expected, second;
+  layer_expectation(n, k, plain, expected, second);
   patch_samples(n, k, x_fp, y_fp, footprint, expected, second);
   g_pair_expected[i] = expected;
   g_pair_second[i] = second;
@@ -674,9 +688,8 @@ void dpt(int n, int64_t x_fp, int64_t y_fp, float footprint, float plain, float 
     const float fade = ramp(per_footprint(P.materials[n].dpt[k].patch_texels, footprint), P.materials[n].dpt_fade_lo,
                             P.materials[n].dpt_fade_hi);
     if (prefiltered) {
-      const float present = ramp(P.materials[n].dpt[k].patch_texels, P.materials[n].dpt_fade_lo, P.materials[n].dpt_fade_hi);
-      const float exact =
-          ramp(per_footprint(P.materials[n].dpt[k].patch_texels, footprint), P.prefilter_patch_lo, P.prefilter_patch_hi);
+      float present, exact;
+      layer_shares(n, k, footprint, present, exact);
       fade_max = max(fade_max, present);
       if (present <= 0.0) continue;
       // A cleared part bit: its share is zero for every layer at this footprint (TVT_PART_*).
@@ -684,9 +697,7 @@ void dpt(int n, int64_t x_fp, int64_t y_fp, float footprint, float plain, float 
       const float point = part(TVT_PART_DPT_POINT) && exact > 0.0 ? present * exact * patch_value(n, k, x_fp, y_fp) : 0.0;
       float expected = 0.0, second = 0.0;
       if (part(TVT_PART_DPT_EXPECT) && weight > 0.0) {
-        const float q = clamp01(safe_pow(plain, P.materials[n].dpt[k].exp_p / max(P.materials[n].dpt[k].exp_r, 1e-6)));
-        expected = patch_expectation(n, k, q);
-        second = patch_second_moment(n, k, q);
+        layer_expectation(n, k, plain, expected, second);
         if (part(TVT_PART_DPT_SAMPLES)) patch_samples(n, k, x_fp, y_fp, footprint, expected, second);
         // The pairs' samples, composed before the material loop (sample_pairs()): the same values.
         for (int i = 0; i < TVT_SAMPLE_PAIRS_MAX; ++i)
