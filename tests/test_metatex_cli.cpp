@@ -193,6 +193,27 @@ TEST_F(MetatexCliTest, GeneratorWithExactLabels) {
   EXPECT_TRUE(fs::exists(path("g.png")));
 }
 
+// An automatic isolation that merged features or broke them into pieces says so: on the
+// real tiles (dark grout, shaded tile edges) one feature is 21x the median and hundreds of
+// specks are dropped; on the pavers, which it isolates right, neither line appears.
+TEST_F(MetatexCliTest, ChecksFlagAnIsolationThatMergedOrBrokeFeatures) {
+  const std::string textures = std::string(TVT_SOURCE_DIR) + "/tests/data/textures/";
+  ASSERT_EQ(run("metatex --input " + textures + "tiles.png --out " + path("t.exr")), 0) << output_;
+  EXPECT_NE(output_.find("check            the largest feature is 21.0x the median"), std::string::npos) << output_;
+  EXPECT_NE(output_.find("specks dropped against 24 features"), std::string::npos) << output_;
+  EXPECT_NE(output_.find("--joints or a hand-made --mask"), std::string::npos) << output_;
+  ASSERT_EQ(run("metatex --input " + textures + "tiles.png --joints --out " + path("t.exr")), 0) << output_;
+  EXPECT_NE(output_.find("check            the largest feature is 10.1x the median"), std::string::npos) << output_;
+  EXPECT_EQ(output_.find("--joints or"), std::string::npos) << output_;  // it is on already
+  ASSERT_EQ(run("metatex --input " + textures + "pavers.png --out " + path("p.exr")), 0) << output_;
+  EXPECT_NE(output_.find("features         64"), std::string::npos) << output_;
+  EXPECT_EQ(output_.find("  check  "), std::string::npos) << output_;
+  // A hand-made mask is what the user drew: no check.
+  ASSERT_EQ(run("metatex --input " + path("albedo.png") + " --mask " + path("mask.png") + " --out " + path("m.exr")), 0)
+      << output_;
+  EXPECT_EQ(output_.find("  check  "), std::string::npos) << output_;
+}
+
 // The case: a greyscale image without alpha, of no power-of-two size, used with mode
 // fbpb. Scene loading isolates with the defaults of `terravt metatex`, so both give the same
 // meta-texture: every field of every texel (the bytes the compositors read) and the count.

@@ -158,6 +158,7 @@ int run_metatex(const MetatexArgs& a, bool threshold_given) {
   IsolationReport report;
   uint32_t specks = 0;
   std::string method;
+  bool isolated = false;  // automatic isolation (neither a hand-made mask nor exact labels)
   if (!a.mask.empty()) {
     auto mask_rgba = read_image_rgba8(a.mask);
     if (!mask_rgba) return usage_error("--mask " + mask_rgba.error().message);
@@ -193,6 +194,7 @@ int run_metatex(const MetatexArgs& a, bool threshold_given) {
     options.erode_texels = a.erode;
     labels = isolate_features(m.albedo, options, &report);
     specks = report.specks_dropped;
+    isolated = true;
     method = "automatic: " + report.summary() + (a.erode ? ", erode " + std::to_string(a.erode) : "");
   }
 
@@ -237,6 +239,21 @@ int run_metatex(const MetatexArgs& a, bool threshold_given) {
   }
   std::printf("  specks dropped   %u (below %u texels)\n", specks,
               report.speck_limit ? report.speck_limit : a.min_texels);
+  // What the figures say of an automatic isolation that went wrong (the usual failures on
+  // photographs, docs/metatex.md): one feature more than 3x the typical one, or more specks
+  // than features.
+  if (isolated && labels.count > 0) {
+    const char* remedy = a.joints ? "a hand-made --mask separates them" : "--joints or a hand-made --mask may separate them";
+    const uint64_t median = sizes[sizes.size() / 2];
+    if (double(sizes.back()) > 3.0 * double(median))
+      std::printf("  check            the largest feature is %.1fx the median: features merged across faint joints, "
+                  "or one that large in the image? See --debug; %s\n",
+                  double(sizes.back()) / double(median), remedy);
+    if (specks > labels.count)
+      std::printf("  check            %u specks dropped against %u features: features broken into pieces "
+                  "(shaded parts on the background's side)? See --debug; %s\n",
+                  specks, labels.count, a.joints ? "a hand-made --mask keeps them whole" : "--joints or a hand-made --mask may keep them whole");
+  }
   std::printf("  soft map blur    sigma %.2f texels\n", a.blur);
   std::printf("  wrote            %s%s%s\n", a.out.c_str(), a.debug.empty() ? "" : ", ", a.debug.c_str());
   std::printf("  time             %.3f s (reading and preparing the image %.3f s, isolation %.3f s, meta-texture %.3f s, "
