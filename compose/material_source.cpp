@@ -96,6 +96,10 @@ Status check_headers(const SceneDesc& d, size_t index, MaterialInfo& info) {
                       ", height from " + std::string(to_string(source)) +
                       (source == HeightSource::Alpha && o.height == HeightSource::Auto ? " (luminance if constant)" : "") +
                       (source == HeightSource::Luminance && o.invert_height ? " (inverted)" : "");
+    // Features from the image alone: what the user cannot see in the scene, and how to look.
+    if (m.has_fbpb && m.fbpb.meta_path.empty() && m.fbpb.mask_path.empty())
+      info.image_note += ", FBPB features isolated automatically at first use (`terravt metatex --input " +
+                         m.albedo.image_path + " --debug <png>` shows them)";
   }
   info.mip_count = std::countr_zero(unsigned(std::max(info.resolution, 1))) + 1;
   info.meta = m.has_fbpb;

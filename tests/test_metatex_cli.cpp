@@ -236,6 +236,15 @@ TEST_F(MetatexCliTest, SceneLoadingAndTheCliGiveTheSameMetaTextureByteForByte) {
     ASSERT_TRUE(desc.ok()) << desc.error().message;
     auto assets = tvt::load_scene_assets(desc.value());
     ASSERT_TRUE(assets.ok()) << assets.error().message;
+    // The loader says what it does with the file, from its header (the CLI prints it).
+    const std::string note = assets->materials->info(1).image_note;
+    EXPECT_EQ(note, image == real ? image + ": 256x256, 3 channel(s), used as it is, height from luminance, FBPB "
+                                            "features isolated automatically at first use (`terravt metatex --input " +
+                                            image + " --debug <png>` shows them)"
+                                  : image + ": 100x100, 1 channel(s), resampled to 128x128 (Lanczos-3, wrap), height "
+                                            "from luminance, FBPB features isolated automatically at first use "
+                                            "(`terravt metatex --input " + image + " --debug <png>` shows them)");
+    EXPECT_TRUE(assets->materials->info(0).image_note.empty());  // a generator's
     auto wall = assets->materials->get(1);
     ASSERT_TRUE(wall.ok()) << wall.error().message;
     ASSERT_TRUE(wall.value()->meta.has_value());
