@@ -238,12 +238,12 @@ TEST_F(MetatexCliTest, SceneLoadingAndTheCliGiveTheSameMetaTextureByteForByte) {
     ASSERT_TRUE(assets.ok()) << assets.error().message;
     // The loader says what it does with the file, from its header (the CLI prints it).
     const std::string note = assets->materials->info(1).image_note;
-    EXPECT_EQ(note, image == real ? image + ": 256x256, 3 channel(s), used as it is, height from luminance, FBPB "
-                                            "features isolated automatically at first use (`terravt metatex --input " +
-                                            image + " --debug <png>` shows them)"
-                                  : image + ": 100x100, 1 channel(s), resampled to 128x128 (Lanczos-3, wrap), height "
-                                            "from luminance, FBPB features isolated automatically at first use "
-                                            "(`terravt metatex --input " + image + " --debug <png>` shows them)");
+    const std::string isolation =
+        ", FBPB features isolated automatically at first use (`terravt metatex --input " + image + " --debug <png>` shows them)";
+    EXPECT_EQ(note, image + (image == real ? ": 256x256, 3 channel(s), used as it is, height from luminance"
+                                           : ": 100x100, 1 channel(s), resampled to 128x128 (Lanczos-3, wrap), height "
+                                             "from luminance") +
+                        isolation);
     EXPECT_TRUE(assets->materials->info(0).image_note.empty());  // a generator's
     auto wall = assets->materials->get(1);
     ASSERT_TRUE(wall.ok()) << wall.error().message;

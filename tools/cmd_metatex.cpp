@@ -158,7 +158,6 @@ int run_metatex(const MetatexArgs& a, bool threshold_given) {
   IsolationReport report;
   uint32_t specks = 0;
   std::string method;
-  bool isolated = false;  // automatic isolation (neither a hand-made mask nor exact labels)
   if (!a.mask.empty()) {
     auto mask_rgba = read_image_rgba8(a.mask);
     if (!mask_rgba) return usage_error("--mask " + mask_rgba.error().message);
@@ -194,7 +193,6 @@ int run_metatex(const MetatexArgs& a, bool threshold_given) {
     options.erode_texels = a.erode;
     labels = isolate_features(m.albedo, options, &report);
     specks = report.specks_dropped;
-    isolated = true;
     method = "automatic: " + report.summary() + (a.erode ? ", erode " + std::to_string(a.erode) : "");
   }
 
@@ -229,26 +227,26 @@ int run_metatex(const MetatexArgs& a, bool threshold_given) {
   std::printf("  isolation        %s\n", method.c_str());
   std::printf("  features         %u\n", labels.count);
   std::printf("  texels covered   %.2f %%\n", 100.0 * double(covered) / (double(r) * double(r)));
-  if (labels.count > 0) {
-    // The largest against the median (the upper one of an even count): one feature many times
-    // the typical one is usually several merged, unless the image really has such a feature.
-    const uint64_t median = sizes[sizes.size() / 2];
+  // The largest against the median (the upper one of an even count): one feature many times
+  // the typical one is usually several merged, unless the image really has such a feature.
+  const uint64_t median = labels.count > 0 ? sizes[sizes.size() / 2] : 0;
+  const double largest_ratio = labels.count > 0 ? double(sizes.back()) / double(median) : 0.0;
+  if (labels.count > 0)
     std::printf("  feature size     smallest %llu, median %llu, largest %llu texels (largest / median %.2f)\n",
                 (unsigned long long)sizes.front(), (unsigned long long)median, (unsigned long long)sizes.back(),
-                double(sizes.back()) / double(median));
-  }
+                largest_ratio);
   std::printf("  specks dropped   %u (below %u texels)\n", specks,
               report.speck_limit ? report.speck_limit : a.min_texels);
   // What the figures say of an automatic isolation that went wrong (the usual failures on
   // photographs, docs/metatex.md): one feature more than 3x the typical one, or more specks
   // than features.
+  const bool isolated = a.mask.empty() && !m.has_exact_labels;  // neither a hand-made mask nor exact labels
   if (isolated && labels.count > 0) {
     const char* remedy = a.joints ? "a hand-made --mask separates them" : "--joints or a hand-made --mask may separate them";
-    const uint64_t median = sizes[sizes.size() / 2];
-    if (double(sizes.back()) > 3.0 * double(median))
+    if (largest_ratio > 3.0)
       std::printf("  check            the largest feature is %.1fx the median: features merged across faint joints, "
                   "or one that large in the image? See --debug; %s\n",
-                  double(sizes.back()) / double(median), remedy);
+                  largest_ratio, remedy);
     if (specks > labels.count)
       std::printf("  check            %u specks dropped against %u features: features broken into pieces "
                   "(shaded parts on the background's side)? See --debug; %s\n",
