@@ -234,6 +234,50 @@ TEST_F(HostileCli, NanInfiniteAndUnwritableValuesAreRefusedUnderTheirFlagBeforeA
   EXPECT_FALSE(fs::exists(out));
 }
 
+// ---- an output never replaces an input ---------------------------------------------------
+
+// Every command that reads files refuses an output that is one of them, however the path is
+// spelt (another spelling, a symbolic or a hard link), with --overwrite or not, before any work:
+// the run would destroy what it reads. The inputs stay byte for byte what they were.
+TEST_F(HostileCli, AnOutputThatIsAnInputOfTheSameRunIsRefusedNamingBothFlags) {
+  // A scene under an image's name (compose writes images) and a camera path; dummy store parts.
+  const std::string scene_png = path("scene.png");
+  fs::copy_file(scene_, scene_png);
+  ASSERT_EQ(run("render --scene " + scene_ + " --save-camera " + path("camera.json")), 0) << output_;
+  const std::string camera = path("camera.json");
+  fs::create_symlink(camera, path("camera-link.json"));
+  fs::create_hard_link(scene_, path("scene-hard.json"));
+  std::ofstream(path("part.tvt")) << "part";
+  fs::create_directories(path("cmp"));
+  std::ofstream(path("cmp/compare.tvt")) << "store";
+  const std::string inputs[] = {scene_, scene_png, camera, path("part.tvt"), path("cmp/compare.tvt")};
+  std::vector<std::string> before;
+  for (const std::string& f : inputs) before.push_back(bytes(f));
+  const std::pair<std::string, std::string> cases[] = {
+      {"compose --device cpu --size 16 --scene " + scene_png + " --out " + scene_png, "--out " + scene_png + ": is the --scene file"},
+      {"bench compose --scene " + scene_ + " --json " + path("x/../scene.json"), "--json " + path("x/../scene.json") + ": is the --scene file"},
+      {"bench mips --scene " + scene_ + " --json " + path("m.json") + " --svg " + path("scene-hard.json"), "--svg " + path("scene-hard.json") + ": is the --scene file"},
+      {"bench frame --scene " + scene_ + " --json " + scene_, "--json " + scene_ + ": is the --scene file"},
+      {"bench-loader --store " + path("part.tvt") + " --json " + path("part.tvt"), "--json " + path("part.tvt") + ": is the --store file"},
+      {bake_args(scene_) + " --overwrite", "--out " + scene_ + ": is the --scene file"},
+      {bake_args(path("b.tvt")) + " --dict auto --save-dict " + scene_ + " --overwrite", "--save-dict " + scene_ + ": is the --scene file"},
+      {"render --quiet --scene " + scene_ + " --camera " + camera + " --save-camera " + path("camera-link.json") + " --overwrite",
+       "--save-camera " + path("camera-link.json") + ": is the --camera file"},
+      {"render --quiet --scene " + scene_ + " --page-table " + scene_ + " --overwrite --out " + path("r"), "--page-table " + scene_ + ": is the --scene file"},
+      {"compare --quiet --scene " + scene_ + " --store " + path("cmp/compare.tvt") + " --out " + path("cmp") + " --overwrite",
+       "--out " + path("cmp/compare.tvt") + ": is the --store file"},
+      {"merge " + path("part.tvt") + " --out " + path("part.tvt") + " --overwrite", "--out " + path("part.tvt") + ": is the part file"},
+  };
+  fs::create_directories(path("x"));
+  for (const auto& [args, message] : cases) {
+    EXPECT_EQ(run(args), 2) << args << ": " << output_;
+    EXPECT_TRUE(said(message + "; an output never replaces an input")) << args << ": " << output_;
+  }
+  for (size_t i = 0; i < before.size(); ++i) EXPECT_EQ(bytes(inputs[i]), before[i]) << inputs[i];
+  EXPECT_FALSE(fs::exists(path("b.tvt")));
+  EXPECT_FALSE(fs::exists(path("r")));
+}
+
 // compare's flags are checked before its procedural run (minutes), not after it.
 TEST_F(HostileCli, CompareChecksEveryFlagAndItsStoreBeforeAnyWork) {
   fs::create_directories(path("folder.tvt"));

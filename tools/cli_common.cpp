@@ -156,6 +156,35 @@ CLI::Validator output_file() {
   return CLI::Validator([](std::string& path) { return output_file_problem(path, true).value_or(std::string()); }, "FILE");
 }
 
+namespace {
+
+// The same file: one device and inode where both exist, else the same normalised absolute path.
+bool same_file(const std::string& a, const std::string& b) {
+  namespace fs = std::filesystem;
+  struct stat sa {}, sb {};
+  const bool a_exists = ::stat(a.c_str(), &sa) == 0, b_exists = ::stat(b.c_str(), &sb) == 0;
+  if (a_exists && b_exists) return sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
+  if (a_exists != b_exists) return false;
+  std::error_code ea, eb;
+  const fs::path pa = fs::weakly_canonical(fs::absolute(fs::path(a), ea), ea);
+  const fs::path pb = fs::weakly_canonical(fs::absolute(fs::path(b), eb), eb);
+  return !ea && !eb && pa == pb;
+}
+
+}  // namespace
+
+std::optional<std::string> output_collision(const std::string& flag, const std::string& output, const FlaggedPaths& inputs,
+                                            const FlaggedPaths& outputs) {
+  if (output.empty()) return std::nullopt;
+  for (const auto& [input_flag, input] : inputs)
+    if (!input.empty() && same_file(output, input))
+      return flag + " " + output + ": is the " + input_flag + " file; an output never replaces an input";
+  for (const auto& [other_flag, other] : outputs)
+    if (!other.empty() && other_flag != flag && same_file(output, other))
+      return flag + " " + output + ": is also " + other_flag + "; two outputs cannot share a file";
+  return std::nullopt;
+}
+
 std::string check_image_output(const std::string& flag, const std::string& path, bool must_be_exr) {
   namespace fs = std::filesystem;
   const fs::path p(path);

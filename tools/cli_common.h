@@ -73,6 +73,16 @@ std::optional<std::string> output_file_problem(const std::string& path, bool ove
 // with overwrite, so a bad path fails before the run instead of after it.
 CLI::Validator output_file();
 
+// A run's files by flag, ("--input", path); empty paths are skipped.
+using FlaggedPaths = std::vector<std::pair<std::string, std::string>>;
+// Whether `output` (for `flag`) is one of the run's `inputs` or another of its `outputs`, the
+// same file however it is spelt (another path to it, a symbolic or hard link; an output not
+// written yet by its normalised absolute path): the run would destroy what it reads, or write
+// one output over another. Checked before any work; returns the message naming both flags
+// ("--debug a.png: is the --input file; an output never replaces an input"), or nullopt.
+std::optional<std::string> output_collision(const std::string& flag, const std::string& output, const FlaggedPaths& inputs,
+                                            const FlaggedPaths& outputs = {});
+
 // An image output for `flag`, checked before any work: its folder exists, it is not a folder
 // or any other non-regular file, and OIIO has a writer for its extension (`must_be_exr`: .exr
 // only). Returns the problem ("--out x.png: folder 'y' does not exist") or "" when usable.

@@ -138,6 +138,15 @@ int run_bake(const BakeArgs& a) {
     if (auto why = not_a_regular_file(a.dict)) return fail(cmd, "--dict: " + *why, 2);
   if (!a.save_dict.empty())
     if (auto s = check_output_file("--save-dict", a.save_dict, a.overwrite); !s) return fail(cmd, s.error().message, 2);
+  {
+    // --overwrite replaces an earlier output, never what this run reads.
+    FlaggedPaths inputs = {{"--scene", a.scene}};
+    if (a.dict != "none" && a.dict != "auto") inputs.push_back({"--dict", a.dict});
+    for (const std::string& f : a.finer) inputs.push_back({"--finer", f});
+    const FlaggedPaths outputs = {{"--out", a.out}, {"--save-dict", a.save_dict}};
+    for (const auto& [flag, output] : outputs)
+      if (auto problem = output_collision(flag, output, inputs, outputs)) return fail(cmd, *problem, 2);
+  }
 
   auto assets = load_scene_and_assets(a.scene, a.hex);
   if (!assets) return fail(cmd, assets.error().message, 2);

@@ -163,6 +163,7 @@ int run_bench_compose(const BenchComposeArgs& a) {
   const char* cmd = "bench compose";
   if (a.pages < 1 || a.pages > 256) return fail(cmd, "--pages: must be between 1 and 256", 2);
   if (a.repeats < 1 || a.repeats > 1000) return fail(cmd, "--repeats: must be between 1 and 1000", 2);
+  if (auto problem = output_collision("--json", a.json_out, {{"--scene", a.scene}})) return fail(cmd, *problem, 2);
   auto assets = load_scene_and_assets(a.scene);
   if (!assets) return fail(cmd, assets.error().message, 2);
   // A benchmark times composition, not first-use loading: read every material up front.
@@ -325,9 +326,12 @@ int run_bench_mips(const BenchMipsArgs& a) {
   if (svg_out.empty() && !a.json_out.empty())
     svg_out = std::filesystem::path(a.json_out).replace_extension(".svg").string();
   const std::pair<const char*, const std::string*> outputs[] = {{"--json", &a.json_out}, {"--svg", &svg_out}};
-  for (const auto& [flag, path] : outputs)
-    if (!path->empty())
-      if (auto s = check_output_file(flag, *path, true); !s) return fail(cmd, s.error().message, 2);
+  for (const auto& [flag, path] : outputs) {
+    if (path->empty()) continue;
+    if (auto s = check_output_file(flag, *path, true); !s) return fail(cmd, s.error().message, 2);
+    if (auto problem = output_collision(flag, *path, {{"--scene", a.scene}}, {{"--json", a.json_out}, {"--svg", svg_out}}))
+      return fail(cmd, *problem, 2);
+  }
   auto assets = load_scene_and_assets(a.scene);
   if (!assets) return fail(cmd, assets.error().message, 2);
   // A benchmark times composition, not first-use loading: read every material up front.

@@ -236,6 +236,10 @@ int run_compare(const CompareArgs& a) {
   const auto method = method_from_string(a.method);
   if (!method) return fail(cmd, "--method: unknown method '" + a.method + "'", 2);
   if (a.frames < 1 || a.every < 1) return fail(cmd, "--frames/--every: must be at least 1", 2);
+  for (const char* name : k_outputs)
+    if (auto problem = output_collision("--out", (std::filesystem::path(a.out) / name).string(),
+                                        {{"--scene", a.scene}, {"--store", a.store}, {"--camera", a.camera}}))
+      return fail(cmd, *problem, 2);
   // Every flag and input is checked before the procedural run, which takes minutes.
   if (a.width < 16 || a.height < 16 || a.width > 8192 || a.height > 8192)
     return fail(cmd, "--width/--height: must be between 16 and 8192", 2);

@@ -43,6 +43,7 @@ int run_compose(const ComposeArgs& a) {
     methods.push_back(*parsed);
   }
   if (a.device != "gpu" && a.device != "cpu") return fail(cmd, "--device: must be gpu or cpu, got " + a.device, 2);
+  if (auto problem = output_collision("--out", a.out, {{"--scene", a.scene}})) return fail(cmd, *problem, 2);
   if (!a.region.empty() && a.region.size() != 4) return fail(cmd, "--region: needs x,y,width,height", 2);
   if (!a.panels_dir.empty() && !std::filesystem::is_directory(a.panels_dir))
     return fail(cmd, "--panels: folder does not exist: " + a.panels_dir, 2);

@@ -176,6 +176,13 @@ int run_render(const RenderArgs& a) {
   if (!(a.fps >= 1e-3 && a.fps <= 1000.0)) return fail(cmd, "--fps: must be in [0.001, 1000]", 2);
   if (a.camera_given && a.camera.empty()) return fail(cmd, "--camera: empty path", 2);
   if (a.save_camera_given && a.save_camera.empty()) return fail(cmd, "--save-camera: empty path", 2);
+  {
+    // --overwrite replaces an earlier output, never what this run reads.
+    const FlaggedPaths inputs = {{"--scene", a.scene}, {"--camera", a.camera}, {"--store", a.store}};
+    const FlaggedPaths outputs = {{"--save-camera", a.save_camera}, {"--page-table", a.page_table}};
+    for (const auto& [flag, output] : outputs)
+      if (auto problem = output_collision(flag, output, inputs, outputs)) return fail(cmd, *problem, 2);
+  }
   if (a.gpu_given && a.gpu_name.empty()) return fail(cmd, "--gpu: empty device name (omit --gpu for the default device)", 2);
   if (a.cache_slots < 2) return fail(cmd, "--cache-slots: must be at least 2, got " + std::to_string(a.cache_slots), 2);
   if (a.page_budget < 1 || a.page_budget > a.cache_slots)
