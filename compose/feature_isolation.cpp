@@ -688,4 +688,45 @@ FeatureLabels labels_from_mask(const ImageGray8& mask, uint32_t min_feature_texe
   return compact_labels(std::move(labels), count, mask.width, min_feature_texels);
 }
 
+ImageGray8 mask_from_labels(const FeatureLabels& labels, int width, int height) {
+  const int r = labels.resolution;
+  TVT_CHECK(r > 0 && labels.labels.size() == size_t(r) * size_t(r) && width > 0 && height > 0);
+  std::vector<uint8_t> texel(labels.labels.size(), 0);
+  for (int y = 0; y < r; ++y)
+    for (int x = 0; x < r; ++x) {
+      const int32_t l = labels.labels[texel_index(x, y, r)];
+      if (l < 0) continue;
+      bool split = false;
+      for (int s = 0; s < 4 && !split; ++s) {
+        const int32_t n = labels.labels[texel_index(wrap(x + k_step_x[s], r), wrap(y + k_step_y[s], r), r)];
+        split = n >= 0 && n < l;
+      }
+      texel[texel_index(x, y, r)] = split ? 0 : 255;
+    }
+  // Texels reading pixel p of an axis of `size` pixels: floor(t * size / r) = p, i.e.
+  // ceil(p r / size) <= t < ceil((p + 1) r / size); none where the image is larger.
+  auto readers = [r](int p, int size, int& lo, int& hi) {
+    lo = int((int64_t(p) * r + size - 1) / size);
+    hi = int((int64_t(p + 1) * r + size - 1) / size);
+    if (lo >= hi) {  // read by no texel: the texel under it
+      lo = int(int64_t(p) * r / size);
+      hi = lo + 1;
+    }
+  };
+  ImageGray8 mask(width, height);
+  for (int py = 0; py < height; ++py) {
+    int y0, y1;
+    readers(py, height, y0, y1);
+    for (int px = 0; px < width; ++px) {
+      int x0, x1;
+      readers(px, width, x0, x1);
+      uint8_t v = 255;
+      for (int y = y0; y < y1; ++y)
+        for (int x = x0; x < x1; ++x) v = std::min(v, texel[texel_index(x, y, r)]);
+      mask.at(px, py) = v;
+    }
+  }
+  return mask;
+}
+
 }  // namespace tvt

@@ -98,5 +98,14 @@ FeatureLabels isolate_features(const ImageRGBA8& albedo, const IsolationOptions&
                                IsolationReport* report = nullptr);
 // A hand-made mask (non-zero = feature): connected components on the torus, specks dropped.
 FeatureLabels labels_from_mask(const ImageGray8& mask, uint32_t min_feature_texels);
+// The other way, for editing by hand (`terravt metatex --mask-out`): 255 on features, 0 on the
+// background, and 0 on the texels of a feature that touch (4-neighbours, on the torus) a feature
+// of a lower label, so that features the isolation split stay apart in the mask. Drawn on the
+// image as given, `width` x `height`, from which labels_from_mask() and a scene's `fbpb.mask`
+// read the material's texels by nearest texel (material_image.h, resample_mask_nearest()):
+// each pixel is 0 if any texel that reads it is 0 (a smaller image keeps the splits), and a
+// pixel no texel reads takes the texel under it. At the material's own size, labels_from_mask()
+// gives the same features less the split texels.
+ImageGray8 mask_from_labels(const FeatureLabels& labels, int width, int height);
 
 }  // namespace tvt

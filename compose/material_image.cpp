@@ -109,6 +109,10 @@ ImageGray8 resample_mask_nearest(const ImageRGBA8& mask, int resolution) {
   return out;
 }
 
+bool mask_size_fits(int mask_w, int mask_h, int source_w, int source_h, int resolution) {
+  return (mask_w == source_w && mask_h == source_h) || (mask_w == resolution && mask_h == resolution);
+}
+
 std::string MaterialImageReport::summary() const {
   std::string s = size_text(source_width, source_height) + " (" + std::to_string(source_channels) + " ch) ";
   s += resampled ? "resampled to " + size_text(resolution, resolution) + " (Lanczos-3, wrap)" : "used as it is";

@@ -52,11 +52,15 @@ Status check_meta_size(const SceneDesc& d, size_t index, int resolution, int alb
 
 // Masks are drawn on the albedo image as given, so they must have its size; they are
 // resampled with it (nearest texel, a mask is binary).
-Status check_mask_size(const SceneDesc& d, size_t index, int width, int height, int albedo_w, int albedo_h) {
-  if (width != albedo_w || height != albedo_h)
+Status check_mask_size(const SceneDesc& d, size_t index, int width, int height, int albedo_w, int albedo_h,
+                       int resolution) {
+  if (!mask_size_fits(width, height, albedo_w, albedo_h, resolution))
     return make_error(scene_field(d, material_ptr(index, "fbpb/mask")) + ": " + d.materials[index].fbpb.mask_path +
                       ": size " + size_text(width, height) + " differs from the albedo image's " +
-                      size_text(albedo_w, albedo_h));
+                      size_text(albedo_w, albedo_h) +
+                      (albedo_w == resolution && albedo_h == resolution
+                           ? std::string()
+                           : " and from the material's " + size_text(resolution, resolution)));
   return Ok{};
 }
 
@@ -111,7 +115,7 @@ Status check_headers(const SceneDesc& d, size_t index, MaterialInfo& info) {
     auto h = header(d, material_ptr(index, "fbpb/mask"), m.fbpb.mask_path);
     if (!h) return h.error();
     if (auto s = check_mask_size(d, index, h->width, h->height, albedo_w ? albedo_w : info.resolution,
-                                 albedo_h ? albedo_h : info.resolution);
+                                 albedo_h ? albedo_h : info.resolution, info.resolution);
         !s)
       return s;
   }
@@ -201,7 +205,7 @@ Result<std::optional<MetaTexture>> load_meta(const SceneDesc& d, size_t index, c
     if (!mask) return make_error(scene_field(d, material_ptr(index, "fbpb/mask")) + ": " + mask.error().message);
     const bool from_image = image.source_width > 0;  // else a generator made the albedo at its size
     if (auto s = check_mask_size(d, index, mask->width, mask->height, from_image ? image.source_width : albedo.width,
-                                 from_image ? image.source_height : albedo.height);
+                                 from_image ? image.source_height : albedo.height, albedo.width);
         !s)
       return s.error();
     const ImageGray8 gray = resample_mask_nearest(*mask, albedo.width);

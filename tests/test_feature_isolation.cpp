@@ -3,9 +3,12 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "compose/feature_isolation.h"
+#include "compose/material_image.h"
 
 namespace {
 
@@ -134,3 +137,89 @@ TEST(FeatureIsolation, TheSameImageAndOptionsGiveTheSameLabels) {
 }
 
 }  // namespace
+
+// ---- the editable mask (terravt metatex --mask-out) ----------------------------------------
+
+// Labels of a brick wall with no mortar at all on the torus: every brick touches its
+// neighbours, so only the mask's split lines keep them apart; the courses are offset by half a
+// brick and one brick crosses the texture's corner.
+tvt::FeatureLabels touching_bricks() {
+  tvt::FeatureLabels l;
+  l.resolution = R;
+  l.labels.assign(size_t(R) * R, -1);
+  for (int y = 0; y < R; ++y)
+    for (int x = 0; x < R; ++x) {
+      const int course = ((y + 3) % R) / 8, shift = course % 2 ? 8 : 0;
+      const int brick = ((x + 5 + shift) % R) / 16;
+      // A few background texels (the mask keeps them background) and bricks numbered in no order.
+      l.labels[size_t(y) * R + size_t(x)] = (x + 2 * y) % 37 == 0 ? -1 : (course * 4 + brick) * 7 % 32;
+    }
+  l.count = 32;
+  return l;
+}
+
+// Whether texel (x, y) of a feature touches a feature of a lower label (4-neighbours, on the
+// torus): the split texels the mask leaves out.
+bool split_texel(const tvt::FeatureLabels& l, int x, int y) {
+  const int32_t f = label_at(l, x, y);
+  if (f < 0) return false;
+  for (const auto& [dx, dy] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}})
+    if (const int32_t n = label_at(l, x + dx, y + dy); n >= 0 && n < f) return true;
+  return false;
+}
+
+// The mask at `w` x `h` read back as scene loading and `--mask` read it: nearest texel, then
+// components. Every feature comes back as one component, with exactly its texels less the
+// split ones.
+void expect_round_trip(const tvt::FeatureLabels& original, int w, int h) {
+  SCOPED_TRACE(std::to_string(w) + " x " + std::to_string(h));
+  const tvt::ImageGray8 mask = tvt::mask_from_labels(original, w, h);
+  ASSERT_EQ(mask.width, w);
+  ASSERT_EQ(mask.height, h);
+  tvt::ImageRGBA8 rgba(w, h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) rgba.at(x, y)[0] = mask.at(x, y);
+  const tvt::FeatureLabels back = tvt::labels_from_mask(tvt::resample_mask_nearest(rgba, R), 1);
+  ASSERT_EQ(back.count, original.count);
+  std::vector<int32_t> from(back.count, -2);
+  for (int y = 0; y < R; ++y)
+    for (int x = 0; x < R; ++x) {
+      const int32_t was = label_at(original, x, y), now = label_at(back, x, y);
+      ASSERT_EQ(now >= 0, was >= 0 && !split_texel(original, x, y)) << x << ", " << y;
+      if (now < 0) continue;
+      int32_t& f = from[size_t(now)];
+      if (f == -2) f = was;
+      EXPECT_EQ(f, was) << "one feature read back over two at " << x << ", " << y;
+    }
+}
+
+TEST(MaskFromLabels, KeepsTouchingFeaturesApartAtTheMaterialSizeAndAtLargerImageSizes) {
+  const tvt::FeatureLabels bricks = touching_bricks();
+  const tvt::ImageGray8 mask = tvt::mask_from_labels(bricks, R, R);
+  for (int y = 0; y < R; ++y)
+    for (int x = 0; x < R; ++x)
+      EXPECT_EQ(mask.at(x, y), label_at(bricks, x, y) >= 0 && !split_texel(bricks, x, y) ? 255 : 0) << x << ", " << y;
+  // The material's own size and images larger than it on both sides, square or not (the loader
+  // reads a subset of their pixels).
+  for (const auto& [w, h] : {std::pair{R, R}, {100, 70}, {64, 200}, {128, 128}}) expect_round_trip(bricks, w, h);
+}
+
+TEST(MaskFromLabels, ASmallerImageStillNeverJoinsTwoFeatures) {
+  // 48 pixels for 64 texels: some pixels are read by two texels, and background wins, so the
+  // features shrink but none joins another (the CLI writes such masks at the material's size).
+  const tvt::FeatureLabels bricks = touching_bricks();
+  const tvt::ImageGray8 mask = tvt::mask_from_labels(bricks, 48, 48);
+  tvt::ImageRGBA8 rgba(48, 48);
+  for (int y = 0; y < 48; ++y)
+    for (int x = 0; x < 48; ++x) rgba.at(x, y)[0] = mask.at(x, y);
+  const tvt::FeatureLabels back = tvt::labels_from_mask(tvt::resample_mask_nearest(rgba, R), 1);
+  EXPECT_GT(back.count, 0u);
+  std::vector<int32_t> from(back.count, -2);
+  for (size_t i = 0; i < back.labels.size(); ++i) {
+    if (back.labels[i] < 0) continue;
+    ASSERT_GE(bricks.labels[i], 0);
+    int32_t& f = from[size_t(back.labels[i])];
+    if (f == -2) f = bricks.labels[i];
+    EXPECT_EQ(f, bricks.labels[i]) << "texel " << i;
+  }
+}

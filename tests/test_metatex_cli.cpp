@@ -8,9 +8,11 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "compose/image.h"
@@ -24,6 +26,11 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr int R = 64;
+
+std::string read_bytes(const std::string& file) {
+  std::ifstream in(file, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
 
 class MetatexCliTest : public ::testing::Test {
  protected:
@@ -70,6 +77,19 @@ class MetatexCliTest : public ::testing::Test {
     output_ = text.str();
     fs::remove(log);
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  }
+  // Every field of every texel (the bytes the compositors read) and the count.
+  static void expect_same_meta(const tvt::MetaTexture& from_scene, const std::string& cli_exr, const std::string& what) {
+    auto from_cli = tvt::read_meta_texture(cli_exr);
+    ASSERT_TRUE(from_cli.ok()) << from_cli.error().message;
+    EXPECT_EQ(from_scene.feature_count, from_cli->feature_count) << what;
+    ASSERT_EQ(from_scene.resolution, from_cli->resolution) << what;
+    ASSERT_EQ(from_scene.texels.size(), from_cli->texels.size());
+    for (size_t i = 0; i < from_scene.texels.size(); ++i) {
+      const tvt::MetaTexel &a = from_scene.texels[i], &b = from_cli->texels[i];
+      ASSERT_TRUE(a.dx == b.dx && a.dy == b.dy && a.d == b.d && a.f == b.f && a.variation == b.variation)
+          << what << ": texel " << i;
+    }
   }
   fs::path dir_;
   std::string output_;
@@ -165,7 +185,18 @@ TEST_F(MetatexCliTest, BadFlagsAndInputsExitTwoAndWriteNothing) {
       {"metatex" + in + " --out " + path("missing/out.exr"), "does not exist"},
       {"metatex" + in + out + " --debug " + path("missing/debug.png"), "--debug"},
       {"metatex" + in + out + " --debug " + path("debug.notanimage"), "--debug"},
+      {"metatex" + in + out + " --mask-out " + path("missing/m.png"), "--mask-out"},
+      // No output replaces an input, however spelt, or another output.
+      {"metatex" + in + out + " --debug " + path("albedo.png"),
+       "--debug " + path("albedo.png") + ": is the --input file; an output never replaces an input"},
+      {"metatex" + in + out + " --debug " + path("x/../albedo.png"), "is the --input file"},
+      {"metatex" + in + out + " --mask " + path("mask.png") + " --mask-out " + path("mask.png"), "is the --mask file"},
+      {"metatex" + in + out + " --height " + path("mask.png") + " --debug " + path("mask.png"), "is the --height file"},
+      {"metatex" + in + out + " --debug " + path("debug.png") + " --mask-out " + path("debug.png"),
+       "--debug " + path("debug.png") + ": is also --mask-out; two outputs cannot share a file"},
   };
+  fs::create_directories(path("x"));
+  const std::string albedo_bytes = read_bytes(path("albedo.png")), mask_bytes = read_bytes(path("mask.png"));
   for (const auto& [name, why] : tvt::test::write_bad_images(dir_)) {
     cases.push_back({"metatex --input " + path(name) + out, "--input " + path(name) + ": "});
     cases.push_back({"metatex --input " + path(name) + out, why});
@@ -179,6 +210,8 @@ TEST_F(MetatexCliTest, BadFlagsAndInputsExitTwoAndWriteNothing) {
   }
   for (const auto& entry : fs::directory_iterator(dir_))
     EXPECT_EQ(entry.path().string().find(".tmp-"), std::string::npos) << entry.path();
+  EXPECT_EQ(read_bytes(path("albedo.png")), albedo_bytes);
+  EXPECT_EQ(read_bytes(path("mask.png")), mask_bytes);
 }
 
 TEST_F(MetatexCliTest, GeneratorWithExactLabels) {
@@ -249,17 +282,54 @@ TEST_F(MetatexCliTest, SceneLoadingAndTheCliGiveTheSameMetaTextureByteForByte) {
     ASSERT_TRUE(wall.ok()) << wall.error().message;
     ASSERT_TRUE(wall.value()->meta.has_value());
     const tvt::MetaTexture& from_scene = *wall.value()->meta;
-    auto from_cli = tvt::read_meta_texture(path("cli.exr"));
-    ASSERT_TRUE(from_cli.ok()) << from_cli.error().message;
     EXPECT_GT(from_scene.feature_count, 3u) << image;
-    EXPECT_EQ(from_scene.feature_count, from_cli->feature_count) << image;
-    ASSERT_EQ(from_scene.resolution, from_cli->resolution) << image;
-    ASSERT_EQ(from_scene.texels.size(), from_cli->texels.size());
-    for (size_t i = 0; i < from_scene.texels.size(); ++i) {
-      const tvt::MetaTexel &a = from_scene.texels[i], &b = from_cli->texels[i];
-      ASSERT_TRUE(a.dx == b.dx && a.dy == b.dy && a.d == b.d && a.f == b.f && a.variation == b.variation)
-          << image << ": texel " << i;
-    }
+    expect_same_meta(from_scene, path("cli.exr"), image);
+  }
+}
+
+// `--mask-out` writes the features as a mask to edit by hand: drawn on the image as given (at
+// the material's resolution where the image is smaller), white features, black background and
+// split lines. Given back with `--mask`, or as a scene's `fbpb.mask`, it gives the same
+// features, and the CLI and scene loading the same meta-texture.
+TEST_F(MetatexCliTest, MaskOutReadsBackAsTheSameFeaturesInTheCliAndInAScene) {
+  const std::string textures = std::string(TVT_SOURCE_DIR) + "/tests/data/textures/";
+  // pavers: 256 x 256, 64 touching-free pavers; light_mortar_bricks: 96 x 96, resampled to 128.
+  for (const auto& [name, side] : {std::pair<std::string, int>{"pavers.png", 256}, {"light_mortar_bricks.png", 128}}) {
+    const std::string image = textures + name;
+    ASSERT_EQ(run("metatex --input " + image + " --out " + path("auto.exr") + " --mask-out " + path("m.png")), 0) << output_;
+    const size_t at = output_.find("features         ");
+    ASSERT_NE(at, std::string::npos) << output_;
+    const int features = std::atoi(output_.c_str() + at + 17);
+    EXPECT_GT(features, 3) << name;
+    EXPECT_NE(output_.find("wrote            " + path("auto.exr") + ", " + path("m.png")), std::string::npos) << output_;
+    auto mask = tvt::read_image_rgba8(path("m.png"));
+    ASSERT_TRUE(mask.ok()) << mask.error().message;
+    EXPECT_EQ(mask->width, side) << name;
+    EXPECT_EQ(mask->height, side) << name;
+    size_t white = 0;
+    for (int y = 0; y < mask->height; ++y)
+      for (int x = 0; x < mask->width; ++x) {
+        const uint8_t v = mask->at(x, y)[0];
+        ASSERT_TRUE(v == 0 || v == 255) << name << " at " << x << ", " << y;
+        white += v == 255;
+      }
+    EXPECT_GT(white, 0u);
+
+    ASSERT_EQ(run("metatex --input " + image + " --mask " + path("m.png") + " --out " + path("cli.exr")), 0) << output_;
+    EXPECT_NE(output_.find("features         " + std::to_string(features) + "\n"), std::string::npos) << output_;
+    const std::string scene = tvt::test::write_scene_json(dir_, "scene.json", R"(
+      {"name": "ground", "albedo": {"generator": "sand", "resolution": 16}, "weight": "remainder"},
+      {"name": "wall", "albedo": {"image": ")" + image + R"("}, "mode": "fbpb", "weight": {"rule": {"height": [0, 1]}},
+       "fbpb": {"mask": ")" + path("m.png") + R"("}})");
+    auto desc = tvt::load_scene_file(scene);
+    ASSERT_TRUE(desc.ok()) << desc.error().message;
+    auto assets = tvt::load_scene_assets(desc.value());
+    ASSERT_TRUE(assets.ok()) << assets.error().message;
+    auto wall = assets->materials->get(1);
+    ASSERT_TRUE(wall.ok()) << wall.error().message;
+    ASSERT_TRUE(wall.value()->meta.has_value());
+    EXPECT_EQ(wall.value()->meta->feature_count, uint32_t(features)) << name;
+    expect_same_meta(*wall.value()->meta, path("cli.exr"), name);
   }
 }
 

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "compose/feature_isolation.h"
 #include "compose/image.h"
 #include "compose/material_image.h"
 #include "compose/metatex.h"
@@ -27,7 +28,7 @@ constexpr int k_max_resolution = 16384;  // offsets are int16 and stay inside ±
 
 // Isolation defaults are IsolationOptions{}'s: the same as scene loading uses.
 struct MetatexArgs {
-  std::string input, height, generator, mask, out, debug;
+  std::string input, height, generator, mask, out, debug, mask_out;
   std::string channel = "auto", polarity = "auto", height_source = "auto";
   bool height_invert = false;
   uint32_t resolution = 0;  // 0: generator 512, image the size rule
@@ -134,15 +135,23 @@ int run_metatex(const MetatexArgs& a, bool threshold_given) {
   if (auto problem = check_image_output("--out", a.out, true); !problem.empty()) return usage_error(problem);
   if (!a.debug.empty())
     if (auto problem = check_image_output("--debug", a.debug, false); !problem.empty()) return usage_error(problem);
+  if (!a.mask_out.empty())
+    if (auto problem = check_image_output("--mask-out", a.mask_out, false); !problem.empty()) return usage_error(problem);
+  // No output replaces an input or another output (`--debug` on the --input image would lose it).
+  const FlaggedPaths inputs = {{"--input", a.input}, {"--height", a.height}, {"--mask", a.mask}};
+  const FlaggedPaths outputs = {{"--out", a.out}, {"--debug", a.debug}, {"--mask-out", a.mask_out}};
+  for (const auto& [flag, output] : outputs)
+    if (auto problem = output_collision(flag, output, inputs, outputs)) return usage_error(*problem);
 
   // One process per output: two runs writing the same meta-texture never interleave.
   auto owned = OutputLock::acquire("--out", a.out);
   if (!owned) return usage_error(owned.error().message);
-  std::optional<OutputLock> owned_debug;
-  if (!a.debug.empty()) {
-    auto d = OutputLock::acquire("--debug", a.debug);
-    if (!d) return usage_error(d.error().message);
-    owned_debug.emplace(std::move(d.value()));
+  std::vector<OutputLock> owned_others;
+  for (const auto& [flag, output] : {outputs[1], outputs[2]}) {
+    if (output.empty()) continue;
+    auto lock = OutputLock::acquire(flag, output);
+    if (!lock) return usage_error(lock.error().message);
+    owned_others.push_back(std::move(lock.value()));
   }
 
   // Phase times, printed with the total: what a user waits for is mostly isolation.
@@ -161,12 +170,16 @@ int run_metatex(const MetatexArgs& a, bool threshold_given) {
   if (!a.mask.empty()) {
     auto mask_rgba = read_image_rgba8(a.mask);
     if (!mask_rgba) return usage_error("--mask " + mask_rgba.error().message);
-    // Drawn on the input as given: its size, resampled with it (as scene loading does).
+    // Drawn on the input as given (its size, resampled with it) or at the material's resolution
+    // (--mask-out of a smaller image), as scene loading takes it.
     const int want_w = m.source_width ? m.source_width : r, want_h = m.source_height ? m.source_height : r;
-    if (mask_rgba->width != want_w || mask_rgba->height != want_h)
+    if (!mask_size_fits(mask_rgba->width, mask_rgba->height, want_w, want_h, r))
       return usage_error("--mask " + a.mask + ": " + std::to_string(mask_rgba->width) + " x " +
                          std::to_string(mask_rgba->height) + " texels, but the material image is " +
-                         std::to_string(want_w) + " x " + std::to_string(want_h));
+                         std::to_string(want_w) + " x " + std::to_string(want_h) +
+                         (want_w == r && want_h == r ? std::string()
+                                                     : " (and the material " + std::to_string(r) + " x " +
+                                                           std::to_string(r) + ")"));
     const ImageGray8 mask = resample_mask_nearest(*mask_rgba, r);
     labels = labels_from_mask(mask, a.min_texels);
     specks = labels_from_mask(mask, 1).count - labels.count;
@@ -203,10 +216,25 @@ int run_metatex(const MetatexArgs& a, bool threshold_given) {
 
   const auto write_start = Clock::now();
   if (auto written = write_meta_texture(a.out, meta); !written) return runtime_error(written.error().message);
+  // All or nothing: a failed write removes what this run wrote before it.
+  auto remove_written = [&](std::initializer_list<const std::string*> written) {
+    std::error_code ignored;
+    for (const std::string* path : written) std::filesystem::remove(*path, ignored);
+  };
   if (!a.debug.empty()) {
     if (auto written = write_image(a.debug, meta_debug_image(meta, m.albedo, report.marks)); !written) {
-      std::error_code ignored;
-      std::filesystem::remove(a.out, ignored);  // all or nothing
+      remove_written({&a.out});
+      return runtime_error(written.error().message);
+    }
+  }
+  if (!a.mask_out.empty()) {
+    // Drawn on the input as given (its size), so that --mask (and a scene's fbpb.mask) reads it
+    // back; at the material's resolution where the image is smaller on a side, whose pixels
+    // could not keep the split lines.
+    const bool at_source = m.source_width >= r && m.source_height >= r;
+    const int mask_w = at_source ? m.source_width : r, mask_h = at_source ? m.source_height : r;
+    if (auto written = write_image(a.mask_out, mask_from_labels(labels, mask_w, mask_h)); !written) {
+      remove_written({&a.out, &a.debug});
       return runtime_error(written.error().message);
     }
   }
@@ -253,7 +281,10 @@ int run_metatex(const MetatexArgs& a, bool threshold_given) {
                   specks, labels.count, a.joints ? "a hand-made --mask keeps them whole" : "--joints or a hand-made --mask may keep them whole");
   }
   std::printf("  soft map blur    sigma %.2f texels\n", a.blur);
-  std::printf("  wrote            %s%s%s\n", a.out.c_str(), a.debug.empty() ? "" : ", ", a.debug.c_str());
+  std::string wrote = a.out;
+  for (const std::string* more : {&a.debug, &a.mask_out})
+    if (!more->empty()) wrote += ", " + *more;
+  std::printf("  wrote            %s\n", wrote.c_str());
   std::printf("  time             %.3f s (reading and preparing the image %.3f s, isolation %.3f s, meta-texture %.3f s, "
               "writing %.3f s)\n",
               seconds, load_seconds, isolation_seconds, build_seconds, write_seconds);
@@ -323,6 +354,10 @@ const CommandRegistrar k_register{
       app.add_option("--debug", a->debug,
                      "Debug image (.png ...): features tinted, centroids white, split lines yellow, filled holes "
                      "blue, dropped specks red");
+      app.add_option("--mask-out", a->mask_out,
+                     "Also write the features as an editable mask (.png ...) at the input's size: white features, "
+                     "black background and split lines; edit it and pass it back with --mask (or a scene's "
+                     "fbpb.mask)");
       for (CLI::Option* automatic_only : {channel, threshold, polarity, invert, erode, speck, smooth, background, no_split, no_fill, joints})
         automatic_only->excludes(mask);
       return [a, threshold] { return run_metatex(*a, threshold->count() > 0); };
