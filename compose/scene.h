@@ -5,6 +5,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "compose/material_image.h"
@@ -139,5 +140,10 @@ SceneDesc default_scene();
 
 // Serialises a scene back to JSON (round-trips through parse_scene).
 std::string scene_to_json(const SceneDesc& scene);
+
+// Every file the scene names (images, height and splat maps, normal maps, meta-textures and
+// masks) as (its field, a JSON pointer such as "/materials/2/albedo/image"; its path), in the
+// order of the scene: what a run that loads the scene reads, and must not write over.
+std::vector<std::pair<std::string, std::string>> scene_files(const SceneDesc& scene);
 
 }  // namespace tvt

@@ -315,6 +315,25 @@ Result<SceneDesc> load_scene_file(const std::string& path) {
   return parse_scene(text.value(), path, base);
 }
 
+std::vector<std::pair<std::string, std::string>> scene_files(const SceneDesc& s) {
+  std::vector<std::pair<std::string, std::string>> files;
+  auto add = [&files](std::string field, const std::string& path) {
+    if (!path.empty()) files.emplace_back(std::move(field), path);
+  };
+  add("/terrain/heightmap/image", s.terrain.heightmap.image_path);
+  for (size_t i = 0; i < s.materials.size(); ++i) {
+    const MaterialDesc& m = s.materials[i];
+    const std::string at = "/materials/" + std::to_string(i) + "/";
+    add(at + "albedo/image", m.albedo.image_path);
+    add(at + "albedo/height", m.albedo.height_path);
+    add(at + "normal", m.normal_path);
+    add(at + "weight/splat/image", m.weight.splat_path);
+    add(at + "fbpb/meta", m.fbpb.meta_path);
+    add(at + "fbpb/mask", m.fbpb.mask_path);
+  }
+  return files;
+}
+
 std::string scene_to_json(const SceneDesc& s) {
   const auto path = [&](const std::string& p) { return portable_path(p, s.base_dir); };
   ojson root;

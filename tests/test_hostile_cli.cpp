@@ -18,8 +18,10 @@
 #include <fstream>
 #include <iterator>
 
+#include "compose/image.h"
 #include "streaming/store_format.h"
 #include "support/cli.h"
+#include "support/file_scene.h"
 #include "support/temp_dir.h"
 
 namespace fs = std::filesystem;
@@ -275,6 +277,36 @@ TEST_F(HostileCli, AnOutputThatIsAnInputOfTheSameRunIsRefusedNamingBothFlags) {
   }
   for (size_t i = 0; i < before.size(); ++i) EXPECT_EQ(bytes(inputs[i]), before[i]) << inputs[i];
   EXPECT_FALSE(fs::exists(path("b.tvt")));
+  EXPECT_FALSE(fs::exists(path("r")));
+}
+
+// The files a scene names are inputs too: a material image in the place of an output is
+// refused once the scene is loaded, naming the scene's field, before anything is written.
+TEST_F(HostileCli, AnOutputThatIsAFileTheSceneNamesIsRefusedNamingTheField) {
+  tvt::ImageRGBA8 rock(32, 32);
+  for (size_t i = 0; i < rock.texels.size(); ++i) rock.texels[i] = uint8_t(i * 37 % 251);
+  ASSERT_TRUE(tvt::write_image(path("rock.png"), rock).ok());
+  fs::create_directories(path("panels"));
+  fs::create_symlink(path("rock.png"), path("panels/compose-linear.png"));
+  const std::string scene = tvt::test::write_scene_json(dir_, "rock_scene.json", R"(
+      {"name": "ground", "albedo": {"generator": "sand", "resolution": 16}, "weight": "remainder"},
+      {"name": "rock", "albedo": {"image": "rock.png"}, "weight": {"rule": {"height": [0.5, 1]}}})");
+  const std::string field = ": is the scene's /materials/1/albedo/image file; an output never replaces an input";
+  const std::string before = bytes(path("rock.png"));
+  const std::pair<std::string, std::string> cases[] = {
+      {"compose --device cpu --size 16 --methods linear --scene " + scene + " --out " + path("rock.png"), "--out " + path("rock.png") + field},
+      {"compose --device cpu --size 16 --methods linear --scene " + scene + " --out " + path("sheet.png") + " --panels " + path("panels"),
+       "--panels " + path("panels/compose-linear.png") + field},
+      {"bake --cpu --quiet --method linear --scene " + scene + " --out " + path("rock.png") + " --overwrite", "--out " + path("rock.png") + field},
+      {"render --quiet --scene " + scene + " --page-table " + path("rock.png") + " --overwrite --out " + path("r"),
+       "--page-table " + path("rock.png") + field},
+  };
+  for (const auto& [args, message] : cases) {
+    EXPECT_EQ(run(args), 2) << args << ": " << output_;
+    EXPECT_TRUE(said(message)) << args << ": " << output_;
+  }
+  EXPECT_EQ(bytes(path("rock.png")), before);
+  EXPECT_FALSE(fs::exists(path("sheet.png")));
   EXPECT_FALSE(fs::exists(path("r")));
 }
 

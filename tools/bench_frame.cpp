@@ -305,6 +305,7 @@ int run_bench_frame(const BenchFrameArgs& a) {
   if (!VtMipFilter{a.brilinear_band}.valid()) return fail(cmd, "--brilinear-band: must be in [0, 1]", 2);
   auto assets = load_scene_and_assets(a.scene);
   if (!assets) return fail(cmd, assets.error().message, 2);
+  if (auto problem = output_in_scene({{"--json", a.json_out}}, assets->desc)) return fail(cmd, *problem, 2);
   // Timings compare producers, not first-use loading: read every material up front.
   if (auto loaded = assets->materials->load_all(); !loaded) return fail(cmd, loaded.error().message, 2);
   auto ctx = gpu_context(a.gpu_name);

@@ -185,6 +185,14 @@ std::optional<std::string> output_collision(const std::string& flag, const std::
   return std::nullopt;
 }
 
+std::optional<std::string> output_in_scene(const FlaggedPaths& outputs, const SceneDesc& scene) {
+  FlaggedPaths inputs;
+  for (const auto& [field, path] : scene_files(scene)) inputs.emplace_back("scene's " + field, path);
+  for (const auto& [flag, output] : outputs)
+    if (auto problem = output_collision(flag, output, inputs)) return problem;
+  return std::nullopt;
+}
+
 std::string check_image_output(const std::string& flag, const std::string& path, bool must_be_exr) {
   namespace fs = std::filesystem;
   const fs::path p(path);

@@ -83,6 +83,11 @@ using FlaggedPaths = std::vector<std::pair<std::string, std::string>>;
 std::optional<std::string> output_collision(const std::string& flag, const std::string& output, const FlaggedPaths& inputs,
                                             const FlaggedPaths& outputs = {});
 
+// The same for the files a loaded scene names (its images, maps, meta-textures and masks:
+// "--out rock.png: is the scene's /materials/2/albedo/image file; ..."), checked once the scene
+// is loaded and before anything is written.
+std::optional<std::string> output_in_scene(const FlaggedPaths& outputs, const SceneDesc& scene);
+
 // An image output for `flag`, checked before any work: its folder exists, it is not a folder
 // or any other non-regular file, and OIIO has a writer for its extension (`must_be_exr`: .exr
 // only). Returns the problem ("--out x.png: folder 'y' does not exist") or "" when usable.

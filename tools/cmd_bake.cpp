@@ -150,6 +150,8 @@ int run_bake(const BakeArgs& a) {
 
   auto assets = load_scene_and_assets(a.scene, a.hex);
   if (!assets) return fail(cmd, assets.error().message, 2);
+  if (auto problem = output_in_scene({{"--out", a.out}, {"--save-dict", a.save_dict}}, assets->desc))
+    return fail(cmd, *problem, 2);
   const VtConfig& vt = assets->desc.vt;
   BakeRegion region;
   // Out-of-range values are refused, not clamped: --mips 0,99 would silently bake every mip.

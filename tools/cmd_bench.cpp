@@ -166,6 +166,7 @@ int run_bench_compose(const BenchComposeArgs& a) {
   if (auto problem = output_collision("--json", a.json_out, {{"--scene", a.scene}})) return fail(cmd, *problem, 2);
   auto assets = load_scene_and_assets(a.scene);
   if (!assets) return fail(cmd, assets.error().message, 2);
+  if (auto problem = output_in_scene({{"--json", a.json_out}}, assets->desc)) return fail(cmd, *problem, 2);
   // A benchmark times composition, not first-use loading: read every material up front.
   if (auto loaded = assets->materials->load_all(); !loaded) return fail(cmd, loaded.error().message, 2);
   const VtConfig& vt = assets->desc.vt;
@@ -334,6 +335,7 @@ int run_bench_mips(const BenchMipsArgs& a) {
   }
   auto assets = load_scene_and_assets(a.scene);
   if (!assets) return fail(cmd, assets.error().message, 2);
+  if (auto problem = output_in_scene({{"--json", a.json_out}, {"--svg", svg_out}}, assets->desc)) return fail(cmd, *problem, 2);
   // A benchmark times composition, not first-use loading: read every material up front.
   if (auto loaded = assets->materials->load_all(); !loaded) return fail(cmd, loaded.error().message, 2);
   const VtConfig& vt = assets->desc.vt;

@@ -261,6 +261,11 @@ int run_compare(const CompareArgs& a) {
   // Inputs first: a bad scene or camera file leaves no output folder behind.
   auto assets = load_scene_and_assets(a.scene, a.hex);
   if (!assets) return fail(cmd, assets.error().message, 2);
+  {
+    FlaggedPaths outputs;
+    for (const char* name : k_outputs) outputs.push_back({"--out", (std::filesystem::path(a.out) / name).string()});
+    if (auto problem = output_in_scene(outputs, assets->desc)) return fail(cmd, *problem, 2);
+  }
   auto camera = choose_camera(a.camera, assets.value());
   if (!camera) return fail(cmd, camera.error().message, 2);
   // Timings compare producers, not first-use loading: read every material up front.

@@ -33,6 +33,11 @@ struct ComposeArgs {
   int columns = 3;
 };
 
+// Where --panels puts a method's panel.
+std::string panel_path(const std::string& folder, Method method) {
+  return (std::filesystem::path(folder) / ("compose-" + std::string(to_string(method)) + ".png")).string();
+}
+
 int run_compose(const ComposeArgs& a) {
   const char* cmd = "compose";
   std::vector<Method> methods;
@@ -61,6 +66,10 @@ int run_compose(const ComposeArgs& a) {
   const auto t0 = std::chrono::steady_clock::now();
   auto assets = load_scene_and_assets(a.scene, a.hex);
   if (!assets) return fail(cmd, assets.error().message, 2);
+  FlaggedPaths outputs = {{"--out", a.out}};
+  if (!a.panels_dir.empty())
+    for (Method method : methods) outputs.push_back({"--panels", panel_path(a.panels_dir, method)});
+  if (auto problem = output_in_scene(outputs, assets->desc)) return fail(cmd, *problem, 2);
   const VtConfig& vt = assets->desc.vt;
   if (a.mip >= vt.mip_count())
     return fail(cmd, "--mip: must be below " + std::to_string(vt.mip_count()) + " for this scene, got " + std::to_string(a.mip), 2);
@@ -124,7 +133,7 @@ int run_compose(const ComposeArgs& a) {
     panels.push_back(assemble_region(vt, region, pages, [&](size_t i) -> const std::vector<uint8_t>& { return texels[i]; }));
     std::printf("  %-10s %7.3f s\n", std::string(to_string(method)).c_str(), seconds_since(tm));
     if (!a.panels_dir.empty()) {
-      const std::string path = (std::filesystem::path(a.panels_dir) / ("compose-" + std::string(to_string(method)) + ".png")).string();
+      const std::string path = panel_path(a.panels_dir, method);
       auto s = write_image(path, panels.back());
       if (!s) return failed(s.error().message, 1);
       panel_files.push_back(path);

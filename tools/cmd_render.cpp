@@ -229,6 +229,8 @@ int run_render(const RenderArgs& a) {
   // Inputs first: a bad scene or a missing device leaves no output folder behind.
   auto assets = load_scene_and_assets(a.scene, a.hex);
   if (!assets) return fail(cmd, assets.error().message, 2);
+  if (auto problem = output_in_scene({{"--save-camera", a.save_camera}, {"--page-table", a.page_table}}, assets->desc))
+    return fail(cmd, *problem, 2);
   // A store of another scene, method or VT geometry is as unusable as one that cannot be opened.
   if (store) {
     const uint64_t wanted =
