@@ -234,13 +234,18 @@ TEST_F(MetatexCliTest, ChecksFlagAnIsolationThatMergedOrBrokeFeatures) {
   ASSERT_EQ(run("metatex --input " + textures + "tiles.png --out " + path("t.exr")), 0) << output_;
   EXPECT_NE(output_.find("check            the largest feature is 21.0x the median"), std::string::npos) << output_;
   EXPECT_NE(output_.find("specks dropped against 24 features"), std::string::npos) << output_;
-  EXPECT_NE(output_.find("--joints or a hand-made --mask"), std::string::npos) << output_;
+  EXPECT_NE(output_.find("remedy           --joints may do better; or correct the features by hand: --mask-out writes "
+                         "them as a mask to edit and give back with --mask"),
+            std::string::npos)
+      << output_;
   ASSERT_EQ(run("metatex --input " + textures + "tiles.png --joints --out " + path("t.exr")), 0) << output_;
   EXPECT_NE(output_.find("check            the largest feature is 10.1x the median"), std::string::npos) << output_;
-  EXPECT_EQ(output_.find("--joints or"), std::string::npos) << output_;  // it is on already
+  EXPECT_NE(output_.find("remedy           correct the features by hand: --mask-out"), std::string::npos) << output_;
+  EXPECT_EQ(output_.find("--joints may"), std::string::npos) << output_;  // it is on already
   ASSERT_EQ(run("metatex --input " + textures + "pavers.png --out " + path("p.exr")), 0) << output_;
   EXPECT_NE(output_.find("features         64"), std::string::npos) << output_;
   EXPECT_EQ(output_.find("  check  "), std::string::npos) << output_;
+  EXPECT_EQ(output_.find("  remedy  "), std::string::npos) << output_;
   // A hand-made mask is what the user drew: no check.
   ASSERT_EQ(run("metatex --input " + path("albedo.png") + " --mask " + path("mask.png") + " --out " + path("m.exr")), 0)
       << output_;

@@ -270,15 +270,19 @@ int run_metatex(const MetatexArgs& a, bool threshold_given) {
   // than features.
   const bool isolated = a.mask.empty() && !m.has_exact_labels;  // neither a hand-made mask nor exact labels
   if (isolated && labels.count > 0) {
-    const char* remedy = a.joints ? "a hand-made --mask separates them" : "--joints or a hand-made --mask may separate them";
-    if (largest_ratio > 3.0)
+    const bool merged = largest_ratio > 3.0, broken = specks > labels.count;
+    if (merged)
       std::printf("  check            the largest feature is %.1fx the median: features merged across faint joints, "
-                  "or one that large in the image? See --debug; %s\n",
-                  largest_ratio, remedy);
-    if (specks > labels.count)
+                  "or one that large in the image? See --debug\n",
+                  largest_ratio);
+    if (broken)
       std::printf("  check            %u specks dropped against %u features: features broken into pieces "
-                  "(shaded parts on the background's side)? See --debug; %s\n",
-                  specks, labels.count, a.joints ? "a hand-made --mask keeps them whole" : "--joints or a hand-made --mask may keep them whole");
+                  "(shaded parts on the background's side)? See --debug\n",
+                  specks, labels.count);
+    if (merged || broken)
+      std::printf("  remedy           %scorrect the features by hand: --mask-out writes them as a mask to edit and give "
+                  "back with --mask\n",
+                  a.joints ? "" : "--joints may do better; or ");
   }
   std::printf("  soft map blur    sigma %.2f texels\n", a.blur);
   std::string wrote = a.out;
