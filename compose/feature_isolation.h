@@ -104,8 +104,9 @@ FeatureLabels labels_from_mask(const ImageGray8& mask, uint32_t min_feature_texe
 // image as given, `width` x `height`, from which labels_from_mask() and a scene's `fbpb.mask`
 // read the material's texels by nearest texel (material_image.h, resample_mask_nearest()):
 // each pixel is 0 if any texel that reads it is 0 (a smaller image keeps the splits), and a
-// pixel no texel reads takes the texel under it. At the material's own size, labels_from_mask()
-// gives the same features less the split texels.
+// pixel no texel reads takes the texel under it. At the material's own size or larger,
+// labels_from_mask() gives the same features less the split texels, unless a split line cuts a
+// feature through a one-texel neck or leaves it below the speck limit.
 ImageGray8 mask_from_labels(const FeatureLabels& labels, int width, int height);
 
 }  // namespace tvt

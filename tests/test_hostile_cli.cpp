@@ -250,13 +250,25 @@ TEST_F(HostileCli, AnOutputThatIsAnInputOfTheSameRunIsRefusedNamingBothFlags) {
   fs::create_symlink(camera, path("camera-link.json"));
   fs::create_hard_link(scene_, path("scene-hard.json"));
   std::ofstream(path("part.tvt")) << "part";
+  std::ofstream(path("nothing.tvt")) << "x";
   fs::create_directories(path("cmp"));
-  std::ofstream(path("cmp/compare.tvt")) << "store";
-  const std::string inputs[] = {scene_, scene_png, camera, path("part.tvt"), path("cmp/compare.tvt")};
+  fs::copy_file(camera, path("cmp/compare.json"));
+  // Inputs under the names a run gives the files it writes beside its output and removes.
+  fs::copy_file(scene_, path("st.tvt.partial"));
+  fs::copy_file(scene_png, path("c.png.lock"));
+  fs::copy_file(scene_, path("plot.svg"));
+  fs::create_directories(path("pan"));
+  fs::create_directories(path("pan2"));
+  fs::copy_file(scene_, path("pan/compose-linear.png"));
+  const std::string inputs[] = {scene_, scene_png, camera, path("part.tvt"), path("cmp/compare.json"),
+                                path("st.tvt.partial"), path("c.png.lock"), path("plot.svg"), path("pan/compose-linear.png")};
   std::vector<std::string> before;
   for (const std::string& f : inputs) before.push_back(bytes(f));
   const std::pair<std::string, std::string> cases[] = {
       {"compose --device cpu --size 16 --scene " + scene_png + " --out " + scene_png, "--out " + scene_png + ": is the --scene file"},
+      {"compose --device cpu --size 16 --methods linear --scene " + path("pan/compose-linear.png") + " --out " + path("s2.png") +
+           " --panels " + path("pan"),
+       "--panels linear " + path("pan/compose-linear.png") + ": is the --scene file"},
       {"bench compose --scene " + scene_ + " --json " + path("x/../scene.json"), "--json " + path("x/../scene.json") + ": is the --scene file"},
       {"bench mips --scene " + scene_ + " --json " + path("m.json") + " --svg " + path("scene-hard.json"), "--svg " + path("scene-hard.json") + ": is the --scene file"},
       {"bench frame --scene " + scene_ + " --json " + scene_, "--json " + scene_ + ": is the --scene file"},
@@ -266,18 +278,35 @@ TEST_F(HostileCli, AnOutputThatIsAnInputOfTheSameRunIsRefusedNamingBothFlags) {
       {"render --quiet --scene " + scene_ + " --camera " + camera + " --save-camera " + path("camera-link.json") + " --overwrite",
        "--save-camera " + path("camera-link.json") + ": is the --camera file"},
       {"render --quiet --scene " + scene_ + " --page-table " + scene_ + " --overwrite --out " + path("r"), "--page-table " + scene_ + ": is the --scene file"},
-      {"compare --quiet --scene " + scene_ + " --store " + path("cmp/compare.tvt") + " --out " + path("cmp") + " --overwrite",
-       "--out " + path("cmp/compare.tvt") + ": is the --store file"},
-      {"merge " + path("part.tvt") + " --out " + path("part.tvt") + " --overwrite", "--out " + path("part.tvt") + ": is the part file"},
+      {"compare --quiet --scene " + scene_ + " --camera " + path("cmp/compare.json") + " --out " + path("cmp") + " --overwrite",
+       "--out " + path("cmp/compare.json") + ": is the --camera file"},
+      // Said before any advice to pass --overwrite.
+      {"merge " + path("nothing.tvt") + " " + path("part.tvt") + " --out " + path("part.tvt"), "--out " + path("part.tvt") + ": is the part 2 file"},
+      {"bake --cpu --quiet --method linear --scene " + path("st.tvt.partial") + " --out " + path("st.tvt") + " --restart",
+       "--out " + path("st.tvt") + ": its " + path("st.tvt.partial") + " (written and removed by the run) is the --scene file"},
+      {"compose --device cpu --size 16 --scene " + path("c.png.lock") + " --out " + path("c.png"),
+       "--out " + path("c.png") + ": its " + path("c.png.lock") + " (written and removed by the run) is the --scene file"},
+      {"bench mips --scene " + path("plot.svg") + " --json " + path("plot.json"),
+       "--svg (the --json name as .svg; pass --svg to move it) " + path("plot.svg") + ": is the --scene file"},
   };
   fs::create_directories(path("x"));
   for (const auto& [args, message] : cases) {
     EXPECT_EQ(run(args), 2) << args << ": " << output_;
     EXPECT_TRUE(said(message + "; an output never replaces an input")) << args << ": " << output_;
   }
+  // Nor one output another: the sheet over a panel.
+  EXPECT_EQ(run("compose --device cpu --size 16 --methods linear --scene " + scene_ + " --out " +
+                path("pan2/compose-linear.png") + " --panels " + path("pan2")),
+            2)
+      << output_;
+  EXPECT_TRUE(said("--out " + path("pan2/compose-linear.png") + ": is also --panels linear; two outputs cannot share a file"))
+      << output_;
+  EXPECT_TRUE(fs::is_empty(path("pan2")));
   for (size_t i = 0; i < before.size(); ++i) EXPECT_EQ(bytes(inputs[i]), before[i]) << inputs[i];
   EXPECT_FALSE(fs::exists(path("b.tvt")));
   EXPECT_FALSE(fs::exists(path("r")));
+  EXPECT_FALSE(fs::exists(path("st.tvt")));
+  EXPECT_FALSE(fs::exists(path("c.png")));
 }
 
 // The files a scene names are inputs too: a material image in the place of an output is
@@ -296,7 +325,7 @@ TEST_F(HostileCli, AnOutputThatIsAFileTheSceneNamesIsRefusedNamingTheField) {
   const std::pair<std::string, std::string> cases[] = {
       {"compose --device cpu --size 16 --methods linear --scene " + scene + " --out " + path("rock.png"), "--out " + path("rock.png") + field},
       {"compose --device cpu --size 16 --methods linear --scene " + scene + " --out " + path("sheet.png") + " --panels " + path("panels"),
-       "--panels " + path("panels/compose-linear.png") + field},
+       "--panels linear " + path("panels/compose-linear.png") + field},
       {"bake --cpu --quiet --method linear --scene " + scene + " --out " + path("rock.png") + " --overwrite", "--out " + path("rock.png") + field},
       {"render --quiet --scene " + scene + " --page-table " + path("rock.png") + " --overwrite --out " + path("r"),
        "--page-table " + path("rock.png") + field},

@@ -176,9 +176,13 @@ bool same_file(const std::string& a, const std::string& b) {
 std::optional<std::string> output_collision(const std::string& flag, const std::string& output, const FlaggedPaths& inputs,
                                             const FlaggedPaths& outputs) {
   if (output.empty()) return std::nullopt;
-  for (const auto& [input_flag, input] : inputs)
-    if (!input.empty() && same_file(output, input))
-      return flag + " " + output + ": is the " + input_flag + " file; an output never replaces an input";
+  // The files a run writes beside an output and removes again (its lock, a bake's .partial)
+  // would take an input with them too.
+  for (const std::string& written : {output, output + ".lock", output + ".partial"})
+    for (const auto& [input_flag, input] : inputs)
+      if (!input.empty() && same_file(written, input))
+        return flag + " " + output + ": " + (written == output ? "is" : "its " + written + " (written and removed by the run) is") +
+               " the " + input_flag + " file; an output never replaces an input";
   for (const auto& [other_flag, other] : outputs)
     if (!other.empty() && other_flag != flag && same_file(output, other))
       return flag + " " + output + ": is also " + other_flag + "; two outputs cannot share a file";

@@ -78,8 +78,10 @@ using FlaggedPaths = std::vector<std::pair<std::string, std::string>>;
 // Whether `output` (for `flag`) is one of the run's `inputs` or another of its `outputs`, the
 // same file however it is spelt (another path to it, a symbolic or hard link; an output not
 // written yet by its normalised absolute path): the run would destroy what it reads, or write
-// one output over another. Checked before any work; returns the message naming both flags
-// ("--debug a.png: is the --input file; an output never replaces an input"), or nullopt.
+// one output over another. The files a run writes beside an output and removes again,
+// `<output>.lock` and `<output>.partial`, are checked against the inputs too. Checked before
+// any work; returns the message naming both flags ("--debug a.png: is the --input file; an
+// output never replaces an input"), or nullopt.
 std::optional<std::string> output_collision(const std::string& flag, const std::string& output, const FlaggedPaths& inputs,
                                             const FlaggedPaths& outputs = {});
 

@@ -131,15 +131,9 @@ int run_bake(const BakeArgs& a) {
     if (auto why = not_a_regular_file(f)) return fail(cmd, "--finer: " + *why, 2);
   uint32_t shard_index = 0, shard_count = 1;
   if (auto s = parse_shard(a.shard, shard_index, shard_count); !s) return fail(cmd, s.error().message, 2);
-  // A finished store may have taken hours: it is replaced only when asked (an interrupted bake's
-  // <out>.partial is resumed, not refused), and never when it is not a regular file.
-  if (auto s = check_output_file("--out", a.out, a.overwrite); !s) return fail(cmd, s.error().message, 2);
-  if (a.dict != "none" && a.dict != "auto")
-    if (auto why = not_a_regular_file(a.dict)) return fail(cmd, "--dict: " + *why, 2);
-  if (!a.save_dict.empty())
-    if (auto s = check_output_file("--save-dict", a.save_dict, a.overwrite); !s) return fail(cmd, s.error().message, 2);
   {
-    // --overwrite replaces an earlier output, never what this run reads.
+    // --overwrite replaces an earlier output, never what this run reads (nor the .partial it
+    // writes first): said before any advice to pass --overwrite.
     FlaggedPaths inputs = {{"--scene", a.scene}};
     if (a.dict != "none" && a.dict != "auto") inputs.push_back({"--dict", a.dict});
     for (const std::string& f : a.finer) inputs.push_back({"--finer", f});
@@ -147,6 +141,13 @@ int run_bake(const BakeArgs& a) {
     for (const auto& [flag, output] : outputs)
       if (auto problem = output_collision(flag, output, inputs, outputs)) return fail(cmd, *problem, 2);
   }
+  // A finished store may have taken hours: it is replaced only when asked (an interrupted bake's
+  // <out>.partial is resumed, not refused), and never when it is not a regular file.
+  if (auto s = check_output_file("--out", a.out, a.overwrite); !s) return fail(cmd, s.error().message, 2);
+  if (a.dict != "none" && a.dict != "auto")
+    if (auto why = not_a_regular_file(a.dict)) return fail(cmd, "--dict: " + *why, 2);
+  if (!a.save_dict.empty())
+    if (auto s = check_output_file("--save-dict", a.save_dict, a.overwrite); !s) return fail(cmd, s.error().message, 2);
 
   auto assets = load_scene_and_assets(a.scene, a.hex);
   if (!assets) return fail(cmd, assets.error().message, 2);

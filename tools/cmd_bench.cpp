@@ -326,16 +326,17 @@ int run_bench_mips(const BenchMipsArgs& a) {
   std::string svg_out = a.svg_out;
   if (svg_out.empty() && !a.json_out.empty())
     svg_out = std::filesystem::path(a.json_out).replace_extension(".svg").string();
-  const std::pair<const char*, const std::string*> outputs[] = {{"--json", &a.json_out}, {"--svg", &svg_out}};
+  // The plot's flag as the user sees it: given, or the --json name as .svg.
+  const std::string svg_flag = a.svg_out.empty() ? "--svg (the --json name as .svg; pass --svg to move it)" : "--svg";
+  const FlaggedPaths outputs = {{"--json", a.json_out}, {svg_flag, svg_out}};
   for (const auto& [flag, path] : outputs) {
-    if (path->empty()) continue;
-    if (auto s = check_output_file(flag, *path, true); !s) return fail(cmd, s.error().message, 2);
-    if (auto problem = output_collision(flag, *path, {{"--scene", a.scene}}, {{"--json", a.json_out}, {"--svg", svg_out}}))
-      return fail(cmd, *problem, 2);
+    if (path.empty()) continue;
+    if (auto problem = output_collision(flag, path, {{"--scene", a.scene}}, outputs)) return fail(cmd, *problem, 2);
+    if (auto s = check_output_file(flag, path, true); !s) return fail(cmd, s.error().message, 2);
   }
   auto assets = load_scene_and_assets(a.scene);
   if (!assets) return fail(cmd, assets.error().message, 2);
-  if (auto problem = output_in_scene({{"--json", a.json_out}, {"--svg", svg_out}}, assets->desc)) return fail(cmd, *problem, 2);
+  if (auto problem = output_in_scene(outputs, assets->desc)) return fail(cmd, *problem, 2);
   // A benchmark times composition, not first-use loading: read every material up front.
   if (auto loaded = assets->materials->load_all(); !loaded) return fail(cmd, loaded.error().message, 2);
   const VtConfig& vt = assets->desc.vt;

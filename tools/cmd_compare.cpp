@@ -213,18 +213,23 @@ std::string svg_plot(const std::vector<std::pair<uint32_t, double>>& stored, dou
   return s + "</svg>\n";
 }
 
-// The files a run writes into its --out folder.
-constexpr const char* k_outputs[] = {"compare.tvt", "compare.json", "disk_vs_v.svg"};
+// The files a run writes into its --out folder (the store only when it bakes one: not with --store).
+std::vector<std::string> compare_outputs(const std::string& out, bool bakes_store) {
+  std::vector<std::string> files;
+  for (const char* name : {"compare.tvt", "compare.json", "disk_vs_v.svg"})
+    if (bakes_store || std::string_view(name) != "compare.tvt") files.push_back((std::filesystem::path(out) / name).string());
+  return files;
+}
 
 // Checked before any work: `out` is a folder or does not exist yet, and holds no earlier run's
 // files unless `overwrite` (never a non-file in their place).
-Status check_compare_folder(const std::string& out, bool overwrite) {
+Status check_compare_folder(const std::string& out, bool bakes_store, bool overwrite) {
   namespace fs = std::filesystem;
   std::error_code ec;
   if (!fs::exists(fs::symlink_status(out, ec))) return Ok{};
   if (!fs::is_directory(out, ec)) return make_error("--out: " + out + " exists and is not a folder");
-  for (const char* name : k_outputs)
-    if (auto s = check_output_file("--out", (fs::path(out) / name).string(), overwrite); !s) {
+  for (const std::string& file : compare_outputs(out, bakes_store))
+    if (auto s = check_output_file("--out", file, overwrite); !s) {
       const std::string& why = s.error().message;
       return make_error(why.ends_with("pass --overwrite to replace it") ? why + " (an earlier run's output)" : why);
     }
@@ -236,9 +241,11 @@ int run_compare(const CompareArgs& a) {
   const auto method = method_from_string(a.method);
   if (!method) return fail(cmd, "--method: unknown method '" + a.method + "'", 2);
   if (a.frames < 1 || a.every < 1) return fail(cmd, "--frames/--every: must be at least 1", 2);
-  for (const char* name : k_outputs)
-    if (auto problem = output_collision("--out", (std::filesystem::path(a.out) / name).string(),
-                                        {{"--scene", a.scene}, {"--store", a.store}, {"--camera", a.camera}}))
+  // The folder (its lock) and the files written into it; the store only when compare bakes it.
+  FlaggedPaths outputs = {{"--out", a.out}};
+  for (const std::string& file : compare_outputs(a.out, a.store.empty())) outputs.push_back({"--out", file});
+  for (const auto& [flag, output] : outputs)
+    if (auto problem = output_collision(flag, output, {{"--scene", a.scene}, {"--store", a.store}, {"--camera", a.camera}}))
       return fail(cmd, *problem, 2);
   // Every flag and input is checked before the procedural run, which takes minutes.
   if (a.width < 16 || a.height < 16 || a.width > 8192 || a.height > 8192)
@@ -257,15 +264,11 @@ int run_compare(const CompareArgs& a) {
   }
   auto owned = OutputLock::acquire("--out", a.out);  // one run per folder
   if (!owned) return fail(cmd, owned.error().message, 2);
-  if (auto s = check_compare_folder(a.out, a.overwrite); !s) return fail(cmd, s.error().message, 2);
+  if (auto s = check_compare_folder(a.out, a.store.empty(), a.overwrite); !s) return fail(cmd, s.error().message, 2);
   // Inputs first: a bad scene or camera file leaves no output folder behind.
   auto assets = load_scene_and_assets(a.scene, a.hex);
   if (!assets) return fail(cmd, assets.error().message, 2);
-  {
-    FlaggedPaths outputs;
-    for (const char* name : k_outputs) outputs.push_back({"--out", (std::filesystem::path(a.out) / name).string()});
-    if (auto problem = output_in_scene(outputs, assets->desc)) return fail(cmd, *problem, 2);
-  }
+  if (auto problem = output_in_scene(outputs, assets->desc)) return fail(cmd, *problem, 2);
   auto camera = choose_camera(a.camera, assets.value());
   if (!camera) return fail(cmd, camera.error().message, 2);
   // Timings compare producers, not first-use loading: read every material up front.

@@ -48,7 +48,12 @@ int run_compose(const ComposeArgs& a) {
     methods.push_back(*parsed);
   }
   if (a.device != "gpu" && a.device != "cpu") return fail(cmd, "--device: must be gpu or cpu, got " + a.device, 2);
-  if (auto problem = output_collision("--out", a.out, {{"--scene", a.scene}})) return fail(cmd, *problem, 2);
+  // No output replaces the scene, and the sheet no panel (their locks and panels included).
+  FlaggedPaths outputs = {{"--out", a.out}, {"--panels", a.panels_dir}};
+  if (!a.panels_dir.empty())
+    for (Method method : methods) outputs.push_back({"--panels " + std::string(to_string(method)), panel_path(a.panels_dir, method)});
+  for (const auto& [flag, output] : outputs)
+    if (auto problem = output_collision(flag, output, {{"--scene", a.scene}}, outputs)) return fail(cmd, *problem, 2);
   if (!a.region.empty() && a.region.size() != 4) return fail(cmd, "--region: needs x,y,width,height", 2);
   if (!a.panels_dir.empty() && !std::filesystem::is_directory(a.panels_dir))
     return fail(cmd, "--panels: folder does not exist: " + a.panels_dir, 2);
@@ -66,9 +71,6 @@ int run_compose(const ComposeArgs& a) {
   const auto t0 = std::chrono::steady_clock::now();
   auto assets = load_scene_and_assets(a.scene, a.hex);
   if (!assets) return fail(cmd, assets.error().message, 2);
-  FlaggedPaths outputs = {{"--out", a.out}};
-  if (!a.panels_dir.empty())
-    for (Method method : methods) outputs.push_back({"--panels", panel_path(a.panels_dir, method)});
   if (auto problem = output_in_scene(outputs, assets->desc)) return fail(cmd, *problem, 2);
   const VtConfig& vt = assets->desc.vt;
   if (a.mip >= vt.mip_count())

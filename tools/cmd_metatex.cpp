@@ -216,6 +216,7 @@ int run_metatex(const MetatexArgs& a, bool threshold_given) {
 
   const auto write_start = Clock::now();
   if (auto written = write_meta_texture(a.out, meta); !written) return runtime_error(written.error().message);
+  std::optional<uint32_t> mask_read_back;  // --mask-out's feature count, read back
   // All or nothing: a failed write removes what this run wrote before it.
   auto remove_written = [&](std::initializer_list<const std::string*> written) {
     std::error_code ignored;
@@ -233,10 +234,17 @@ int run_metatex(const MetatexArgs& a, bool threshold_given) {
     // could not keep the split lines.
     const bool at_source = m.source_width >= r && m.source_height >= r;
     const int mask_w = at_source ? m.source_width : r, mask_h = at_source ? m.source_height : r;
-    if (auto written = write_image(a.mask_out, mask_from_labels(labels, mask_w, mask_h)); !written) {
+    const ImageGray8 mask = mask_from_labels(labels, mask_w, mask_h);
+    if (auto written = write_image(a.mask_out, mask); !written) {
       remove_written({&a.out, &a.debug});
       return runtime_error(written.error().message);
     }
+    // Read back as --mask reads it: a feature whose split line cut it in two, or left it below
+    // --min-texels, comes back otherwise.
+    ImageRGBA8 as_read(mask_w, mask_h);
+    for (int y = 0; y < mask_h; ++y)
+      for (int x = 0; x < mask_w; ++x) as_read.at(x, y)[0] = mask.at(x, y);
+    mask_read_back = labels_from_mask(resample_mask_nearest(as_read, r), a.min_texels).count;
   }
 
   const double write_seconds = since(write_start);
@@ -284,6 +292,10 @@ int run_metatex(const MetatexArgs& a, bool threshold_given) {
                   "back with --mask\n",
                   a.joints ? "" : "--joints may do better; or ");
   }
+  if (mask_read_back && *mask_read_back != labels.count)
+    std::printf("  check            --mask-out reads back as %u features, not %u: a split line cut a feature in two "
+                "or left it below --min-texels; see the mask before giving it back\n",
+                *mask_read_back, labels.count);
   std::printf("  soft map blur    sigma %.2f texels\n", a.blur);
   std::string wrote = a.out;
   for (const std::string* more : {&a.debug, &a.mask_out})

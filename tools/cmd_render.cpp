@@ -179,7 +179,7 @@ int run_render(const RenderArgs& a) {
   {
     // --overwrite replaces an earlier output, never what this run reads.
     const FlaggedPaths inputs = {{"--scene", a.scene}, {"--camera", a.camera}, {"--store", a.store}};
-    const FlaggedPaths outputs = {{"--save-camera", a.save_camera}, {"--page-table", a.page_table}};
+    const FlaggedPaths outputs = {{"--out", a.out}, {"--save-camera", a.save_camera}, {"--page-table", a.page_table}};
     for (const auto& [flag, output] : outputs)
       if (auto problem = output_collision(flag, output, inputs, outputs)) return fail(cmd, *problem, 2);
   }

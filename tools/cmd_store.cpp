@@ -24,10 +24,10 @@ struct MergeArgs {
 };
 
 int run_merge(const MergeArgs& a) {
-  if (auto s = check_output_file("--out", a.out, a.overwrite); !s) return fail("merge", s.error().message, 2);
   FlaggedPaths parts;
-  for (const std::string& p : a.parts) parts.push_back({"part", p});
+  for (size_t i = 0; i < a.parts.size(); ++i) parts.push_back({"part " + std::to_string(i + 1), a.parts[i]});
   if (auto problem = output_collision("--out", a.out, parts)) return fail("merge", *problem, 2);
+  if (auto s = check_output_file("--out", a.out, a.overwrite); !s) return fail("merge", s.error().message, 2);
   auto s = merge_stores(a.parts, a.out);
   if (!s) return fail("merge", s.error().message, 1);
   std::printf("merged %zu parts: %llu pages, %.1f MB -> %s\n", a.parts.size(), (unsigned long long)s->pages,
