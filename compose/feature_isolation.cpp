@@ -19,6 +19,7 @@
 #include <optional>
 #include <string>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include "compose/material_image.h"
@@ -703,29 +704,27 @@ ImageGray8 mask_from_labels(const FeatureLabels& labels, int width, int height) 
       }
       texel[texel_index(x, y, r)] = split ? 0 : 255;
     }
-  // Texels reading pixel p of an axis of `size` pixels: floor(t * size / r) = p, i.e.
-  // ceil(p r / size) <= t < ceil((p + 1) r / size); none where the image is larger.
-  auto readers = [r](int p, int size, int& lo, int& hi) {
-    lo = int((int64_t(p) * r + size - 1) / size);
-    hi = int((int64_t(p + 1) * r + size - 1) / size);
-    if (lo >= hi) {  // read by no texel: the texel under it
-      lo = int(int64_t(p) * r / size);
-      hi = lo + 1;
+  // Per pixel p of an axis of `size` pixels, the texels reading it, [first, end):
+  // floor(t * size / r) = p, i.e. ceil(p r / size) <= t < ceil((p + 1) r / size); none where
+  // the image is larger, and then the texel under it.
+  auto readers = [r](int size) {
+    std::vector<std::pair<int, int>> range(static_cast<size_t>(size));
+    for (int p = 0; p < size; ++p) {
+      const int lo = int((int64_t(p) * r + size - 1) / size), hi = int((int64_t(p + 1) * r + size - 1) / size);
+      const int under = int(int64_t(p) * r / size);
+      range[size_t(p)] = lo < hi ? std::pair{lo, hi} : std::pair{under, under + 1};
     }
+    return range;
   };
+  const auto columns = readers(width), rows = readers(height);
   ImageGray8 mask(width, height);
-  for (int py = 0; py < height; ++py) {
-    int y0, y1;
-    readers(py, height, y0, y1);
+  for (int py = 0; py < height; ++py)
     for (int px = 0; px < width; ++px) {
-      int x0, x1;
-      readers(px, width, x0, x1);
       uint8_t v = 255;
-      for (int y = y0; y < y1; ++y)
-        for (int x = x0; x < x1; ++x) v = std::min(v, texel[texel_index(x, y, r)]);
+      for (int y = rows[size_t(py)].first; y < rows[size_t(py)].second; ++y)
+        for (int x = columns[size_t(px)].first; x < columns[size_t(px)].second; ++x) v = std::min(v, texel[texel_index(x, y, r)]);
       mask.at(px, py) = v;
     }
-  }
   return mask;
 }
 

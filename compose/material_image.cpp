@@ -100,13 +100,27 @@ ImageRGBA8 resample_tileable(const ImageRGBA8& image, int resolution) {
   return out;
 }
 
-ImageGray8 resample_mask_nearest(const ImageRGBA8& mask, int resolution) {
+namespace {
+
+// Nearest texel of the first channel, for any image type (`first(x, y)`).
+template <typename Image, typename First>
+ImageGray8 nearest_first_channel(const Image& mask, int resolution, First first) {
   TVT_CHECK(mask.width > 0 && mask.height > 0 && resolution > 0);
   ImageGray8 out(resolution, resolution);
   for (int y = 0; y < resolution; ++y)
     for (int x = 0; x < resolution; ++x)
-      out.at(x, y) = mask.at(int(int64_t(x) * mask.width / resolution), int(int64_t(y) * mask.height / resolution))[0];
+      out.at(x, y) = first(int(int64_t(x) * mask.width / resolution), int(int64_t(y) * mask.height / resolution));
   return out;
+}
+
+}  // namespace
+
+ImageGray8 resample_mask_nearest(const ImageRGBA8& mask, int resolution) {
+  return nearest_first_channel(mask, resolution, [&mask](int x, int y) { return mask.at(x, y)[0]; });
+}
+
+ImageGray8 resample_mask_nearest(const ImageGray8& mask, int resolution) {
+  return nearest_first_channel(mask, resolution, [&mask](int x, int y) { return mask.at(x, y); });
 }
 
 bool mask_size_fits(int mask_w, int mask_h, int source_w, int source_h, int resolution) {

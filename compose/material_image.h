@@ -51,6 +51,7 @@ ImageRGBA8 resample_tileable(const ImageRGBA8& image, int resolution);
 // A feature mask drawn on the source image, brought to the material's resolution by nearest
 // texel (a binary mask stays binary): first channel.
 ImageGray8 resample_mask_nearest(const ImageRGBA8& mask, int resolution);
+ImageGray8 resample_mask_nearest(const ImageGray8& mask, int resolution);
 // Whether a mask_w x mask_h feature mask fits a material of `resolution` texels a side made from
 // a source_w x source_h image: drawn on the image as given (its size), or at the material's own
 // resolution (what `terravt metatex --mask-out` writes for an image smaller than the material,

@@ -291,7 +291,7 @@ std::string sharp_text(const LoopResult& l) {
 
 int run_bench_frame(const BenchFrameArgs& a) {
   const char* cmd = "bench frame";
-  if (auto problem = output_collision("--json", a.json_out, {{"--scene", a.scene}})) return fail(cmd, *problem, 2);
+  if (auto problem = output_collision({{"--json", a.json_out}}, {{"--scene", a.scene}})) return fail(cmd, *problem, 2);
   std::vector<Method> methods;
   for (const std::string& m : a.methods) {
     auto parsed = method_from_string(m);

@@ -173,28 +173,28 @@ bool same_file(const std::string& a, const std::string& b) {
 
 }  // namespace
 
-std::optional<std::string> output_collision(const std::string& flag, const std::string& output, const FlaggedPaths& inputs,
-                                            const FlaggedPaths& outputs) {
-  if (output.empty()) return std::nullopt;
-  // The files a run writes beside an output and removes again (its lock, a bake's .partial)
-  // would take an input with them too.
-  for (const std::string& written : {output, output + ".lock", output + ".partial"})
-    for (const auto& [input_flag, input] : inputs)
-      if (!input.empty() && same_file(written, input))
-        return flag + " " + output + ": " + (written == output ? "is" : "its " + written + " (written and removed by the run) is") +
-               " the " + input_flag + " file; an output never replaces an input";
-  for (const auto& [other_flag, other] : outputs)
-    if (!other.empty() && other_flag != flag && same_file(output, other))
-      return flag + " " + output + ": is also " + other_flag + "; two outputs cannot share a file";
+std::optional<std::string> output_collision(const FlaggedPaths& outputs, const FlaggedPaths& inputs) {
+  for (const auto& [flag, output] : outputs) {
+    if (output.empty()) continue;
+    // The files a run writes beside an output and removes again (its lock, a bake's .partial)
+    // would take an input with them too.
+    for (const std::string& written : {output, output + ".lock", output + ".partial"})
+      for (const auto& [input_flag, input] : inputs)
+        if (!input.empty() && same_file(written, input))
+          return flag + " " + output + ": " +
+                 (written == output ? "is" : "its " + written + " (written and removed by the run) is") + " the " +
+                 input_flag + " file; an output never replaces an input";
+    for (const auto& [other_flag, other] : outputs)
+      if (!other.empty() && other_flag != flag && same_file(output, other))
+        return flag + " " + output + ": is also " + other_flag + "; two outputs cannot share a file";
+  }
   return std::nullopt;
 }
 
 std::optional<std::string> output_in_scene(const FlaggedPaths& outputs, const SceneDesc& scene) {
   FlaggedPaths inputs;
   for (const auto& [field, path] : scene_files(scene)) inputs.emplace_back("scene's " + field, path);
-  for (const auto& [flag, output] : outputs)
-    if (auto problem = output_collision(flag, output, inputs)) return problem;
-  return std::nullopt;
+  return output_collision(outputs, inputs);
 }
 
 std::string check_image_output(const std::string& flag, const std::string& path, bool must_be_exr) {

@@ -75,15 +75,14 @@ CLI::Validator output_file();
 
 // A run's files by flag, ("--input", path); empty paths are skipped.
 using FlaggedPaths = std::vector<std::pair<std::string, std::string>>;
-// Whether `output` (for `flag`) is one of the run's `inputs` or another of its `outputs`, the
-// same file however it is spelt (another path to it, a symbolic or hard link; an output not
-// written yet by its normalised absolute path): the run would destroy what it reads, or write
-// one output over another. The files a run writes beside an output and removes again,
-// `<output>.lock` and `<output>.partial`, are checked against the inputs too. Checked before
-// any work; returns the message naming both flags ("--debug a.png: is the --input file; an
-// output never replaces an input"), or nullopt.
-std::optional<std::string> output_collision(const std::string& flag, const std::string& output, const FlaggedPaths& inputs,
-                                            const FlaggedPaths& outputs = {});
+// Whether one of a run's `outputs` is one of its `inputs` or another of its outputs (under
+// another flag), the same file however it is spelt (another path to it, a symbolic or hard
+// link; a file not written yet by its normalised absolute path): the run would destroy what it
+// reads, or write one output over another. The files a run writes beside an output and removes
+// again, `<output>.lock` and `<output>.partial`, are checked against the inputs too. Checked
+// before any work; returns the first problem, in the order of `outputs`, naming both flags
+// ("--debug a.png: is the --input file; an output never replaces an input"), or nullopt.
+std::optional<std::string> output_collision(const FlaggedPaths& outputs, const FlaggedPaths& inputs);
 
 // The same for the files a loaded scene names (its images, maps, meta-textures and masks:
 // "--out rock.png: is the scene's /materials/2/albedo/image file; ..."), checked once the scene

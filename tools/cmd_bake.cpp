@@ -137,9 +137,7 @@ int run_bake(const BakeArgs& a) {
     FlaggedPaths inputs = {{"--scene", a.scene}};
     if (a.dict != "none" && a.dict != "auto") inputs.push_back({"--dict", a.dict});
     for (const std::string& f : a.finer) inputs.push_back({"--finer", f});
-    const FlaggedPaths outputs = {{"--out", a.out}, {"--save-dict", a.save_dict}};
-    for (const auto& [flag, output] : outputs)
-      if (auto problem = output_collision(flag, output, inputs, outputs)) return fail(cmd, *problem, 2);
+    if (auto problem = output_collision({{"--out", a.out}, {"--save-dict", a.save_dict}}, inputs)) return fail(cmd, *problem, 2);
   }
   // A finished store may have taken hours: it is replaced only when asked (an interrupted bake's
   // <out>.partial is resumed, not refused), and never when it is not a regular file.

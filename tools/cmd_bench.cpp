@@ -163,7 +163,7 @@ int run_bench_compose(const BenchComposeArgs& a) {
   const char* cmd = "bench compose";
   if (a.pages < 1 || a.pages > 256) return fail(cmd, "--pages: must be between 1 and 256", 2);
   if (a.repeats < 1 || a.repeats > 1000) return fail(cmd, "--repeats: must be between 1 and 1000", 2);
-  if (auto problem = output_collision("--json", a.json_out, {{"--scene", a.scene}})) return fail(cmd, *problem, 2);
+  if (auto problem = output_collision({{"--json", a.json_out}}, {{"--scene", a.scene}})) return fail(cmd, *problem, 2);
   auto assets = load_scene_and_assets(a.scene);
   if (!assets) return fail(cmd, assets.error().message, 2);
   if (auto problem = output_in_scene({{"--json", a.json_out}}, assets->desc)) return fail(cmd, *problem, 2);
@@ -329,11 +329,10 @@ int run_bench_mips(const BenchMipsArgs& a) {
   // The plot's flag as the user sees it: given, or the --json name as .svg.
   const std::string svg_flag = a.svg_out.empty() ? "--svg (the --json name as .svg; pass --svg to move it)" : "--svg";
   const FlaggedPaths outputs = {{"--json", a.json_out}, {svg_flag, svg_out}};
-  for (const auto& [flag, path] : outputs) {
-    if (path.empty()) continue;
-    if (auto problem = output_collision(flag, path, {{"--scene", a.scene}}, outputs)) return fail(cmd, *problem, 2);
-    if (auto s = check_output_file(flag, path, true); !s) return fail(cmd, s.error().message, 2);
-  }
+  if (auto problem = output_collision(outputs, {{"--scene", a.scene}})) return fail(cmd, *problem, 2);
+  for (const auto& [flag, path] : outputs)
+    if (!path.empty())
+      if (auto s = check_output_file(flag, path, true); !s) return fail(cmd, s.error().message, 2);
   auto assets = load_scene_and_assets(a.scene);
   if (!assets) return fail(cmd, assets.error().message, 2);
   if (auto problem = output_in_scene(outputs, assets->desc)) return fail(cmd, *problem, 2);

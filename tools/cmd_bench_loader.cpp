@@ -165,7 +165,7 @@ int run_bench_loader(const BenchLoaderArgs& a) {
   if (a.threads < 1 || a.threads > 64) return fail(cmd, "--threads: must be between 1 and 64", 2);
   if (!(a.seconds > 0 && a.seconds <= 600)) return fail(cmd, "--seconds: must be in (0, 600]", 2);
   if (a.rounds < 1 || a.rounds > 100) return fail(cmd, "--rounds: must be between 1 and 100", 2);
-  if (auto problem = output_collision("--json", a.json_out, {{"--store", a.store}})) return fail(cmd, *problem, 2);
+  if (auto problem = output_collision({{"--json", a.json_out}}, {{"--store", a.store}})) return fail(cmd, *problem, 2);
   const fs::path tmp = fs::temp_directory_path() / ("terravt-bench-loader-" + std::to_string(::getpid()));
   std::error_code ec;
   fs::create_directories(tmp, ec);

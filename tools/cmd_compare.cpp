@@ -244,9 +244,8 @@ int run_compare(const CompareArgs& a) {
   // The folder (its lock) and the files written into it; the store only when compare bakes it.
   FlaggedPaths outputs = {{"--out", a.out}};
   for (const std::string& file : compare_outputs(a.out, a.store.empty())) outputs.push_back({"--out", file});
-  for (const auto& [flag, output] : outputs)
-    if (auto problem = output_collision(flag, output, {{"--scene", a.scene}, {"--store", a.store}, {"--camera", a.camera}}))
-      return fail(cmd, *problem, 2);
+  if (auto problem = output_collision(outputs, {{"--scene", a.scene}, {"--store", a.store}, {"--camera", a.camera}}))
+    return fail(cmd, *problem, 2);
   // Every flag and input is checked before the procedural run, which takes minutes.
   if (a.width < 16 || a.height < 16 || a.width > 8192 || a.height > 8192)
     return fail(cmd, "--width/--height: must be between 16 and 8192", 2);

@@ -52,8 +52,7 @@ int run_compose(const ComposeArgs& a) {
   FlaggedPaths outputs = {{"--out", a.out}, {"--panels", a.panels_dir}};
   if (!a.panels_dir.empty())
     for (Method method : methods) outputs.push_back({"--panels " + std::string(to_string(method)), panel_path(a.panels_dir, method)});
-  for (const auto& [flag, output] : outputs)
-    if (auto problem = output_collision(flag, output, {{"--scene", a.scene}}, outputs)) return fail(cmd, *problem, 2);
+  if (auto problem = output_collision(outputs, {{"--scene", a.scene}})) return fail(cmd, *problem, 2);
   if (!a.region.empty() && a.region.size() != 4) return fail(cmd, "--region: needs x,y,width,height", 2);
   if (!a.panels_dir.empty() && !std::filesystem::is_directory(a.panels_dir))
     return fail(cmd, "--panels: folder does not exist: " + a.panels_dir, 2);

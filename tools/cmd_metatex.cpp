@@ -140,18 +140,15 @@ int run_metatex(const MetatexArgs& a, bool threshold_given) {
   // No output replaces an input or another output (`--debug` on the --input image would lose it).
   const FlaggedPaths inputs = {{"--input", a.input}, {"--height", a.height}, {"--mask", a.mask}};
   const FlaggedPaths outputs = {{"--out", a.out}, {"--debug", a.debug}, {"--mask-out", a.mask_out}};
-  for (const auto& [flag, output] : outputs)
-    if (auto problem = output_collision(flag, output, inputs, outputs)) return usage_error(*problem);
+  if (auto problem = output_collision(outputs, inputs)) return usage_error(*problem);
 
   // One process per output: two runs writing the same meta-texture never interleave.
-  auto owned = OutputLock::acquire("--out", a.out);
-  if (!owned) return usage_error(owned.error().message);
-  std::vector<OutputLock> owned_others;
-  for (const auto& [flag, output] : {outputs[1], outputs[2]}) {
+  std::vector<OutputLock> owned;
+  for (const auto& [flag, output] : outputs) {
     if (output.empty()) continue;
     auto lock = OutputLock::acquire(flag, output);
     if (!lock) return usage_error(lock.error().message);
-    owned_others.push_back(std::move(lock.value()));
+    owned.push_back(std::move(lock.value()));
   }
 
   // Phase times, printed with the total: what a user waits for is mostly isolation.
@@ -241,10 +238,7 @@ int run_metatex(const MetatexArgs& a, bool threshold_given) {
     }
     // Read back as --mask reads it: a feature whose split line cut it in two, or left it below
     // --min-texels, comes back otherwise.
-    ImageRGBA8 as_read(mask_w, mask_h);
-    for (int y = 0; y < mask_h; ++y)
-      for (int x = 0; x < mask_w; ++x) as_read.at(x, y)[0] = mask.at(x, y);
-    mask_read_back = labels_from_mask(resample_mask_nearest(as_read, r), a.min_texels).count;
+    mask_read_back = labels_from_mask(resample_mask_nearest(mask, r), a.min_texels).count;
   }
 
   const double write_seconds = since(write_start);

@@ -180,8 +180,7 @@ int run_render(const RenderArgs& a) {
     // --overwrite replaces an earlier output, never what this run reads.
     const FlaggedPaths inputs = {{"--scene", a.scene}, {"--camera", a.camera}, {"--store", a.store}};
     const FlaggedPaths outputs = {{"--out", a.out}, {"--save-camera", a.save_camera}, {"--page-table", a.page_table}};
-    for (const auto& [flag, output] : outputs)
-      if (auto problem = output_collision(flag, output, inputs, outputs)) return fail(cmd, *problem, 2);
+    if (auto problem = output_collision(outputs, inputs)) return fail(cmd, *problem, 2);
   }
   if (a.gpu_given && a.gpu_name.empty()) return fail(cmd, "--gpu: empty device name (omit --gpu for the default device)", 2);
   if (a.cache_slots < 2) return fail(cmd, "--cache-slots: must be at least 2, got " + std::to_string(a.cache_slots), 2);

@@ -26,7 +26,7 @@ struct MergeArgs {
 int run_merge(const MergeArgs& a) {
   FlaggedPaths parts;
   for (size_t i = 0; i < a.parts.size(); ++i) parts.push_back({"part " + std::to_string(i + 1), a.parts[i]});
-  if (auto problem = output_collision("--out", a.out, parts)) return fail("merge", *problem, 2);
+  if (auto problem = output_collision({{"--out", a.out}}, parts)) return fail("merge", *problem, 2);
   if (auto s = check_output_file("--out", a.out, a.overwrite); !s) return fail("merge", s.error().message, 2);
   auto s = merge_stores(a.parts, a.out);
   if (!s) return fail("merge", s.error().message, 1);
