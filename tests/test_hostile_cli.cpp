@@ -339,6 +339,52 @@ TEST_F(HostileCli, AnOutputThatIsAFileTheSceneNamesIsRefusedNamingTheField) {
   EXPECT_FALSE(fs::exists(path("r")));
 }
 
+// With --overwrite, render removes an earlier run's frames and stats from its --out folder:
+// never an input that lies there under such a name (a frame reused as a texture, a camera
+// saved as stats.jsonl), nor one an input links to. Refused before anything is removed.
+TEST_F(HostileCli, RenderNeverRemovesAnInputThatLiesInItsOutputFolder) {
+  tvt::ImageRGBA8 rock(32, 32);
+  for (size_t i = 0; i < rock.texels.size(); ++i) rock.texels[i] = uint8_t(i * 37 % 251);
+  fs::create_directories(path("r"));
+  ASSERT_TRUE(tvt::write_image(path("r/frame_00003.png"), rock).ok());
+  std::ofstream(path("r/frame_00004.png")) << "an earlier frame";
+  const std::string scene = tvt::test::write_scene_json(dir_, "frame_scene.json", R"(
+      {"name": "ground", "albedo": {"generator": "sand", "resolution": 16}, "weight": "remainder"},
+      {"name": "rock", "albedo": {"image": "r/frame_00003.png"}, "weight": {"rule": {"height": [0.5, 1]}}})");
+  ASSERT_EQ(run("render --scene " + scene_ + " --save-camera " + path("camera.json")), 0) << output_;
+  fs::create_directories(path("c"));
+  fs::copy_file(path("camera.json"), path("c/stats.jsonl"));
+  fs::create_symlink(path("c/stats.jsonl"), path("camera-link.json"));
+  const std::string frame = bytes(path("r/frame_00003.png")), camera = bytes(path("c/stats.jsonl"));
+  const std::pair<std::string, std::string> cases[] = {
+      {"render --quiet --frames 1 --scene " + scene + " --out " + path("r") + " --overwrite",
+       "--out " + path("r") + ": its frame_00003.png (an earlier run's output, which this run removes or replaces) is the "
+                              "scene's /materials/1/albedo/image file"},
+      {"render --quiet --frames 1 --scene " + scene_ + " --camera " + path("c/stats.jsonl") + " --out " + path("c") + " --overwrite",
+       "--out " + path("c") + ": its stats.jsonl (an earlier run's output, which this run removes or replaces) is the --camera file"},
+      {"render --quiet --frames 1 --scene " + scene_ + " --camera " + path("camera-link.json") + " --out " + path("c"),
+       "--out " + path("c") + ": its stats.jsonl (an earlier run's output, which this run removes or replaces) is the --camera file"},
+  };
+  for (const auto& [args, message] : cases) {
+    EXPECT_EQ(run(args), 2) << args << ": " << output_;
+    EXPECT_TRUE(said(message + "; an output never replaces an input")) << args << ": " << output_;
+  }
+  EXPECT_EQ(bytes(path("r/frame_00003.png")), frame);
+  EXPECT_EQ(bytes(path("r/frame_00004.png")), "an earlier frame");
+  EXPECT_EQ(bytes(path("c/stats.jsonl")), camera);
+  EXPECT_FALSE(fs::exists(path("r/stats.jsonl")));
+  // A frame in the folder that is only a link to an input is removed, not followed: allowed.
+  fs::remove(path("r/frame_00003.png"));
+  fs::create_symlink(path("camera.json"), path("c/frame_00000.png"));
+  fs::remove(path("c/stats.jsonl"));
+  EXPECT_EQ(run("render --quiet --frames 1 --width 32 --height 32 --scene " + scene_ + " --camera " + path("camera.json") +
+                " --out " + path("c") + " --overwrite"),
+            0)
+      << output_;
+  EXPECT_EQ(bytes(path("camera.json")), camera);
+  EXPECT_FALSE(fs::is_symlink(path("c/frame_00000.png")));
+}
+
 // compare's flags are checked before its procedural run (minutes), not after it.
 TEST_F(HostileCli, CompareChecksEveryFlagAndItsStoreBeforeAnyWork) {
   fs::create_directories(path("folder.tvt"));

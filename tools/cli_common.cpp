@@ -191,10 +191,30 @@ std::optional<std::string> output_collision(const FlaggedPaths& outputs, const F
   return std::nullopt;
 }
 
-std::optional<std::string> output_in_scene(const FlaggedPaths& outputs, const SceneDesc& scene) {
+FlaggedPaths scene_inputs(const SceneDesc& scene) {
   FlaggedPaths inputs;
   for (const auto& [field, path] : scene_files(scene)) inputs.emplace_back("scene's " + field, path);
-  return output_collision(outputs, inputs);
+  return inputs;
+}
+
+std::optional<std::string> output_in_scene(const FlaggedPaths& outputs, const SceneDesc& scene) {
+  return output_collision(outputs, scene_inputs(scene));
+}
+
+std::optional<std::string> input_in_output_folder(const std::string& flag, const std::string& folder,
+                                                  bool (*written)(const std::filesystem::path&), const FlaggedPaths& inputs) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (!fs::is_directory(folder, ec)) return std::nullopt;
+  for (const auto& entry : fs::directory_iterator(folder, ec)) {
+    if (!written(entry.path()) || entry.is_symlink(ec)) continue;
+    for (const auto& [input_flag, input] : inputs)
+      if (!input.empty() && same_file(entry.path().string(), input))
+        return flag + " " + folder + ": its " + entry.path().filename().string() +
+               " (an earlier run's output, which this run removes or replaces) is the " + input_flag +
+               " file; an output never replaces an input";
+  }
+  return std::nullopt;
 }
 
 std::string check_image_output(const std::string& flag, const std::string& path, bool must_be_exr) {

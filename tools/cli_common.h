@@ -2,6 +2,7 @@
 #pragma once
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <optional>
 #include <string>
@@ -88,6 +89,17 @@ std::optional<std::string> output_collision(const FlaggedPaths& outputs, const F
 // "--out rock.png: is the scene's /materials/2/albedo/image file; ..."), checked once the scene
 // is loaded and before anything is written.
 std::optional<std::string> output_in_scene(const FlaggedPaths& outputs, const SceneDesc& scene);
+// The files a loaded scene names as inputs, by field ("scene's /materials/2/albedo/image").
+FlaggedPaths scene_inputs(const SceneDesc& scene);
+
+// Whether a file in the output folder `folder` that the run would remove or replace (those
+// `written` accepts by name: an earlier run's frames and stats) is one of `inputs`, the same
+// file however it is spelt (the folder's own entry, or an input that is a symbolic or hard
+// link to it): removing an earlier run's output would take the input with it. Entries that
+// are themselves symbolic links are skipped (removing a link loses nothing). Returns the
+// problem naming `flag` and the input's flag, or nullopt (also when `folder` does not exist).
+std::optional<std::string> input_in_output_folder(const std::string& flag, const std::string& folder,
+                                                  bool (*written)(const std::filesystem::path&), const FlaggedPaths& inputs);
 
 // An image output for `flag`, checked before any work: its folder exists, it is not a folder
 // or any other non-regular file, and OIIO has a writer for its extension (`must_be_exr`: .exr

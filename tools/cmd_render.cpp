@@ -277,6 +277,12 @@ int run_render(const RenderArgs& a) {
   }
   auto owned = OutputLock::acquire("--out", a.out);  // one run per folder: frames of two runs never mix
   if (!owned) return fail(cmd, owned.error().message, 2);
+  {
+    // With --overwrite an earlier run's frames and stats go: never an input under such a name.
+    FlaggedPaths inputs = {{"--scene", a.scene}, {"--camera", a.camera}, {"--store", a.store}};
+    for (auto& named : scene_inputs(assets->desc)) inputs.push_back(std::move(named));
+    if (auto problem = input_in_output_folder("--out", a.out, is_run_output, inputs)) return fail(cmd, *problem, 2);
+  }
   if (auto s = check_output_folder(a.out, a.overwrite); !s) return fail(cmd, s.error().message, 2);
   if (!a.page_table.empty())
     if (auto s = check_output_file("--page-table", a.page_table, a.overwrite); !s) return fail(cmd, s.error().message, 2);
