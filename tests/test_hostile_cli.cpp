@@ -317,6 +317,8 @@ TEST_F(HostileCli, AnOutputThatIsAFileTheSceneNamesIsRefusedNamingTheField) {
   ASSERT_TRUE(tvt::write_image(path("rock.png"), rock).ok());
   fs::create_directories(path("panels"));
   fs::create_symlink(path("rock.png"), path("panels/compose-linear.png"));
+  fs::create_directories(path("cmp"));
+  fs::create_symlink(path("rock.png"), path("cmp/compare.json"));
   const std::string scene = tvt::test::write_scene_json(dir_, "rock_scene.json", R"(
       {"name": "ground", "albedo": {"generator": "sand", "resolution": 16}, "weight": "remainder"},
       {"name": "rock", "albedo": {"image": "rock.png"}, "weight": {"rule": {"height": [0.5, 1]}}})");
@@ -329,6 +331,8 @@ TEST_F(HostileCli, AnOutputThatIsAFileTheSceneNamesIsRefusedNamingTheField) {
       {"bake --cpu --quiet --method linear --scene " + scene + " --out " + path("rock.png") + " --overwrite", "--out " + path("rock.png") + field},
       {"render --quiet --scene " + scene + " --page-table " + path("rock.png") + " --overwrite --out " + path("r"),
        "--page-table " + path("rock.png") + field},
+      // Before any advice to pass --overwrite.
+      {"compare --quiet --scene " + scene + " --out " + path("cmp"), "--out " + path("cmp") + "/compare.json" + field},
   };
   for (const auto& [args, message] : cases) {
     EXPECT_EQ(run(args), 2) << args << ": " << output_;

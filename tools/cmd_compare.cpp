@@ -263,11 +263,12 @@ int run_compare(const CompareArgs& a) {
   }
   auto owned = OutputLock::acquire("--out", a.out);  // one run per folder
   if (!owned) return fail(cmd, owned.error().message, 2);
-  if (auto s = check_compare_folder(a.out, a.store.empty(), a.overwrite); !s) return fail(cmd, s.error().message, 2);
   // Inputs first: a bad scene or camera file leaves no output folder behind.
   auto assets = load_scene_and_assets(a.scene, a.hex);
   if (!assets) return fail(cmd, assets.error().message, 2);
+  // A file the scene names in the place of an output is refused before any advice to pass --overwrite.
   if (auto problem = output_in_scene(outputs, assets->desc)) return fail(cmd, *problem, 2);
+  if (auto s = check_compare_folder(a.out, a.store.empty(), a.overwrite); !s) return fail(cmd, s.error().message, 2);
   auto camera = choose_camera(a.camera, assets.value());
   if (!camera) return fail(cmd, camera.error().message, 2);
   // Timings compare producers, not first-use loading: read every material up front.
