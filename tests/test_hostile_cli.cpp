@@ -355,6 +355,12 @@ TEST_F(HostileCli, RenderNeverRemovesAnInputThatLiesInItsOutputFolder) {
   const std::string scene = tvt::test::write_scene_json(dir_, "frame_scene.json", R"(
       {"name": "ground", "albedo": {"generator": "sand", "resolution": 16}, "weight": "remainder"},
       {"name": "rock", "albedo": {"image": "r/frame_00003.png"}, "weight": {"rule": {"height": [0.5, 1]}}})");
+  // A link in the folder that the scene names: removing it would take the scene's texture away.
+  fs::create_directories(path("l"));
+  fs::create_symlink(path("r/frame_00003.png"), path("l/frame_00001.png"));
+  const std::string link_scene = tvt::test::write_scene_json(dir_, "link_scene.json", R"(
+      {"name": "ground", "albedo": {"generator": "sand", "resolution": 16}, "weight": "remainder"},
+      {"name": "rock", "albedo": {"image": "l/frame_00001.png"}, "weight": {"rule": {"height": [0.5, 1]}}})");
   ASSERT_EQ(run("render --scene " + scene_ + " --save-camera " + path("camera.json")), 0) << output_;
   fs::create_directories(path("c"));
   fs::copy_file(path("camera.json"), path("c/stats.jsonl"));
@@ -368,6 +374,9 @@ TEST_F(HostileCli, RenderNeverRemovesAnInputThatLiesInItsOutputFolder) {
        "--out " + path("c") + ": its stats.jsonl (an earlier run's output, which this run removes or replaces) is the --camera file"},
       {"render --quiet --frames 1 --scene " + scene_ + " --camera " + path("camera-link.json") + " --out " + path("c"),
        "--out " + path("c") + ": its stats.jsonl (an earlier run's output, which this run removes or replaces) is the --camera file"},
+      {"render --quiet --frames 1 --scene " + link_scene + " --out " + path("l") + " --overwrite",
+       "--out " + path("l") + ": its frame_00001.png (an earlier run's output, which this run removes or replaces) is the "
+                              "scene's /materials/1/albedo/image file"},
   };
   for (const auto& [args, message] : cases) {
     EXPECT_EQ(run(args), 2) << args << ": " << output_;
@@ -377,8 +386,21 @@ TEST_F(HostileCli, RenderNeverRemovesAnInputThatLiesInItsOutputFolder) {
   EXPECT_EQ(bytes(path("r/frame_00004.png")), "an earlier frame");
   EXPECT_EQ(bytes(path("c/stats.jsonl")), camera);
   EXPECT_FALSE(fs::exists(path("r/stats.jsonl")));
-  // A frame in the folder that is only a link to an input is removed, not followed: allowed.
-  fs::remove(path("r/frame_00003.png"));
+  EXPECT_TRUE(fs::is_symlink(path("l/frame_00001.png")));
+  // Nor is the page table written under a name the run writes into --out.
+  EXPECT_EQ(run("render --quiet --frames 1 --scene " + scene_ + " --out " + path("p") + " --page-table " + path("p/stats.jsonl")), 2)
+      << output_;
+  EXPECT_TRUE(said("--page-table " + path("p/stats.jsonl") + ": is a name this run writes into --out " + path("p"))) << output_;
+  EXPECT_FALSE(fs::exists(path("p")));
+  // A frame in the folder that is only a link to an input is removed, not followed, and a
+  // hard link elsewhere to a frame keeps its data: both allowed.
+  fs::create_hard_link(path("r/frame_00003.png"), path("hard.png"));
+  const std::string hard_scene = tvt::test::write_scene_json(dir_, "hard_scene.json", R"(
+      {"name": "ground", "albedo": {"generator": "sand", "resolution": 16}, "weight": "remainder"},
+      {"name": "rock", "albedo": {"image": "hard.png"}, "weight": {"rule": {"height": [0.5, 1]}}})");
+  EXPECT_EQ(run("render --quiet --frames 1 --width 32 --height 32 --scene " + hard_scene + " --out " + path("r") + " --overwrite"), 0)
+      << output_;
+  EXPECT_EQ(bytes(path("hard.png")), frame);
   fs::create_symlink(path("camera.json"), path("c/frame_00000.png"));
   fs::remove(path("c/stats.jsonl"));
   EXPECT_EQ(run("render --quiet --frames 1 --width 32 --height 32 --scene " + scene_ + " --camera " + path("camera.json") +

@@ -201,18 +201,40 @@ std::optional<std::string> output_in_scene(const FlaggedPaths& outputs, const Sc
   return output_collision(outputs, scene_inputs(scene));
 }
 
+namespace {
+
+// The normalised absolute path of `path`'s folder (links resolved) with its own last name,
+// unresolved: where the name itself lies, a link or not.
+std::filesystem::path own_place(const std::filesystem::path& path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path absolute = fs::absolute(path, ec);
+  return fs::weakly_canonical(absolute.parent_path(), ec) / absolute.filename();
+}
+
+}  // namespace
+
+bool written_into_folder(const std::string& path, const std::string& folder, bool (*written)(const std::filesystem::path&)) {
+  const std::filesystem::path place = own_place(path);
+  return place.parent_path() == own_place(std::filesystem::path(folder) / "x").parent_path() && written(place.filename());
+}
+
 std::optional<std::string> input_in_output_folder(const std::string& flag, const std::string& folder,
                                                   bool (*written)(const std::filesystem::path&), const FlaggedPaths& inputs) {
   namespace fs = std::filesystem;
-  std::error_code ec;
-  if (!fs::is_directory(folder, ec)) return std::nullopt;
-  for (const auto& entry : fs::directory_iterator(folder, ec)) {
-    if (!written(entry.path()) || entry.is_symlink(ec)) continue;
-    for (const auto& [input_flag, input] : inputs)
-      if (!input.empty() && same_file(entry.path().string(), input))
-        return flag + " " + folder + ": its " + entry.path().filename().string() +
-               " (an earlier run's output, which this run removes or replaces) is the " + input_flag +
-               " file; an output never replaces an input";
+  for (const auto& [input_flag, input] : inputs) {
+    if (input.empty()) continue;
+    // The input's own name in the folder (a file or a link: the scene would lose its name), or
+    // the file it finally resolves to there (removing that loses the data). A hard link
+    // elsewhere to a file in the folder keeps its data and is not refused.
+    std::error_code ec;
+    const fs::path resolved = fs::canonical(input, ec);
+    fs::path name;
+    if (written_into_folder(input, folder, written)) name = own_place(input).filename();
+    else if (!ec && written_into_folder(resolved.string(), folder, written)) name = resolved.filename();
+    else continue;
+    return flag + " " + folder + ": its " + name.string() + " (an earlier run's output, which this run removes or replaces) is the " +
+           input_flag + " file; an output never replaces an input";
   }
   return std::nullopt;
 }

@@ -92,12 +92,14 @@ std::optional<std::string> output_in_scene(const FlaggedPaths& outputs, const Sc
 // The files a loaded scene names as inputs, by field ("scene's /materials/2/albedo/image").
 FlaggedPaths scene_inputs(const SceneDesc& scene);
 
-// Whether a file in the output folder `folder` that the run would remove or replace (those
-// `written` accepts by name: an earlier run's frames and stats) is one of `inputs`, the same
-// file however it is spelt (the folder's own entry, or an input that is a symbolic or hard
-// link to it): removing an earlier run's output would take the input with it. Entries that
-// are themselves symbolic links are skipped (removing a link loses nothing). Returns the
-// problem naming `flag` and the input's flag, or nullopt (also when `folder` does not exist).
+// Whether `path` names a file in `folder` (however either is spelt; the folder need not exist
+// yet) under a name `written` accepts: one a run writes into its output folder.
+bool written_into_folder(const std::string& path, const std::string& folder, bool (*written)(const std::filesystem::path&));
+// Whether one of `inputs` is a file the run removes or replaces in its output folder `folder`
+// (those `written` accepts by name: an earlier run's frames and stats): the input's own name
+// lies there (a file, or a link the scene would lose), or the input is a symbolic link to a
+// file there (its data would go). A hard link elsewhere keeps its data and passes. Returns the
+// problem naming `flag`, the file and the input's flag, or nullopt.
 std::optional<std::string> input_in_output_folder(const std::string& flag, const std::string& folder,
                                                   bool (*written)(const std::filesystem::path&), const FlaggedPaths& inputs);
 

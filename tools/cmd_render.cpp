@@ -284,8 +284,13 @@ int run_render(const RenderArgs& a) {
     if (auto problem = input_in_output_folder("--out", a.out, is_run_output, inputs)) return fail(cmd, *problem, 2);
   }
   if (auto s = check_output_folder(a.out, a.overwrite); !s) return fail(cmd, s.error().message, 2);
-  if (!a.page_table.empty())
+  if (!a.page_table.empty()) {
+    // A frame or stats.jsonl written later would replace it (or it them).
+    if (written_into_folder(a.page_table, a.out, is_run_output))
+      return fail(cmd, "--page-table " + a.page_table + ": is a name this run writes into --out " + a.out +
+                           " (frames, debug images, stats.jsonl); choose another name", 2);
     if (auto s = check_output_file("--page-table", a.page_table, a.overwrite); !s) return fail(cmd, s.error().message, 2);
+  }
   auto ctx = gpu_context(a.gpu_name);
   if (!ctx) return fail(cmd, ctx.error().message, 1);
   vk::Context& g = *ctx.value();
