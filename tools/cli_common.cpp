@@ -203,35 +203,45 @@ std::optional<std::string> output_in_scene(const FlaggedPaths& outputs, const Sc
 
 namespace {
 
-// The normalised absolute path of `path`'s folder (links resolved) with its own last name,
-// unresolved: where the name itself lies, a link or not.
-std::filesystem::path own_place(const std::filesystem::path& path) {
-  namespace fs = std::filesystem;
+// The normalised absolute path of a folder, links resolved (it need not exist).
+std::filesystem::path folder_place(const std::filesystem::path& folder) {
   std::error_code ec;
-  const fs::path absolute = fs::absolute(path, ec);
-  return fs::weakly_canonical(absolute.parent_path(), ec) / absolute.filename();
+  return std::filesystem::weakly_canonical(std::filesystem::absolute(folder, ec), ec);
+}
+
+// `path` in its folder's place with its own last name, unresolved: where the name itself lies,
+// a link or not.
+std::filesystem::path own_place(const std::filesystem::path& path) {
+  std::error_code ec;
+  const std::filesystem::path absolute = std::filesystem::absolute(path, ec);
+  return folder_place(absolute.parent_path()) / absolute.filename();
+}
+
+// Whether `place` (normalised) lies directly in `folder` (normalised) under a name `written` accepts.
+bool written_at(const std::filesystem::path& place, const std::filesystem::path& folder,
+                bool (*written)(const std::filesystem::path&)) {
+  return place.parent_path() == folder && written(place.filename());
 }
 
 }  // namespace
 
 bool written_into_folder(const std::string& path, const std::string& folder, bool (*written)(const std::filesystem::path&)) {
-  const std::filesystem::path place = own_place(path);
-  return place.parent_path() == own_place(std::filesystem::path(folder) / "x").parent_path() && written(place.filename());
+  return written_at(own_place(path), folder_place(folder), written);
 }
 
 std::optional<std::string> input_in_output_folder(const std::string& flag, const std::string& folder,
                                                   bool (*written)(const std::filesystem::path&), const FlaggedPaths& inputs) {
-  namespace fs = std::filesystem;
+  const std::filesystem::path place = folder_place(folder);
   for (const auto& [input_flag, input] : inputs) {
     if (input.empty()) continue;
     // The input's own name in the folder (a file or a link: the scene would lose its name), or
     // the file it finally resolves to there (removing that loses the data). A hard link
     // elsewhere to a file in the folder keeps its data and is not refused.
     std::error_code ec;
-    const fs::path resolved = fs::canonical(input, ec);
-    fs::path name;
-    if (written_into_folder(input, folder, written)) name = own_place(input).filename();
-    else if (!ec && written_into_folder(resolved.string(), folder, written)) name = resolved.filename();
+    const std::filesystem::path own = own_place(input), resolved = std::filesystem::canonical(input, ec);
+    std::filesystem::path name;
+    if (written_at(own, place, written)) name = own.filename();
+    else if (!ec && written_at(resolved, place, written)) name = resolved.filename();
     else continue;
     return flag + " " + folder + ": its " + name.string() + " (an earlier run's output, which this run removes or replaces) is the " +
            input_flag + " file; an output never replaces an input";

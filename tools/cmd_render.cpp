@@ -176,12 +176,10 @@ int run_render(const RenderArgs& a) {
   if (!(a.fps >= 1e-3 && a.fps <= 1000.0)) return fail(cmd, "--fps: must be in [0.001, 1000]", 2);
   if (a.camera_given && a.camera.empty()) return fail(cmd, "--camera: empty path", 2);
   if (a.save_camera_given && a.save_camera.empty()) return fail(cmd, "--save-camera: empty path", 2);
-  {
-    // --overwrite replaces an earlier output, never what this run reads.
-    const FlaggedPaths inputs = {{"--scene", a.scene}, {"--camera", a.camera}, {"--store", a.store}};
-    const FlaggedPaths outputs = {{"--out", a.out}, {"--save-camera", a.save_camera}, {"--page-table", a.page_table}};
-    if (auto problem = output_collision(outputs, inputs)) return fail(cmd, *problem, 2);
-  }
+  // --overwrite replaces an earlier output, never what this run reads.
+  const FlaggedPaths inputs = {{"--scene", a.scene}, {"--camera", a.camera}, {"--store", a.store}};
+  if (auto problem = output_collision({{"--out", a.out}, {"--save-camera", a.save_camera}, {"--page-table", a.page_table}}, inputs))
+    return fail(cmd, *problem, 2);
   if (a.gpu_given && a.gpu_name.empty()) return fail(cmd, "--gpu: empty device name (omit --gpu for the default device)", 2);
   if (a.cache_slots < 2) return fail(cmd, "--cache-slots: must be at least 2, got " + std::to_string(a.cache_slots), 2);
   if (a.page_budget < 1 || a.page_budget > a.cache_slots)
@@ -279,9 +277,9 @@ int run_render(const RenderArgs& a) {
   if (!owned) return fail(cmd, owned.error().message, 2);
   {
     // With --overwrite an earlier run's frames and stats go: never an input under such a name.
-    FlaggedPaths inputs = {{"--scene", a.scene}, {"--camera", a.camera}, {"--store", a.store}};
-    for (auto& named : scene_inputs(assets->desc)) inputs.push_back(std::move(named));
-    if (auto problem = input_in_output_folder("--out", a.out, is_run_output, inputs)) return fail(cmd, *problem, 2);
+    FlaggedPaths all_inputs = inputs;
+    for (auto& named : scene_inputs(assets->desc)) all_inputs.push_back(std::move(named));
+    if (auto problem = input_in_output_folder("--out", a.out, is_run_output, all_inputs)) return fail(cmd, *problem, 2);
   }
   if (auto s = check_output_folder(a.out, a.overwrite); !s) return fail(cmd, s.error().message, 2);
   if (!a.page_table.empty()) {
