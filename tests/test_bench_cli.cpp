@@ -1,5 +1,5 @@
 // `terravt bench mips` end to end (lavapipe): the table, its JSON and the PSNR-against-cost SVG,
-// and the flags it refuses.
+// the costs alone (--cost-only), and the flags it refuses.
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -71,6 +71,37 @@ TEST(BenchMipsCli, WritesJsonAndOnePlotPanelPerMethodWithACurvePerStrategy) {
   fs::remove_all(dir);
 }
 
+TEST(BenchMipsCli, CostOnlyTimesTheStrategiesWithoutTheGroundTruth) {
+  const fs::path dir = tvt::test::fresh_test_dir("tvt_bench_mips_cost");
+  const std::string scene = tvt::test::write_small_default_scene(dir);
+  const fs::path json_path = dir / "costs.json";
+  std::string out;
+  ASSERT_EQ(tvt::test::run_terravt(dir,
+                                   "bench mips --scene " + scene + " --method blendmap --mips 1,2 --pages 1 --repeats 1 "
+                                   "--cost-only --json " + json_path.string(),
+                                   out),
+            0)
+      << out;
+  EXPECT_EQ(out.find("level-0 pages composed"), std::string::npos) << out;  // no truth composed
+  EXPECT_EQ(count(out, "not judged (--cost-only: no ground truth)"), 1u) << out;
+  std::ifstream in(json_path);
+  const nlohmann::json j = nlohmann::json::parse(in);
+  EXPECT_TRUE(j.at("cost_only").get<bool>());
+  for (const char* mip : {"1", "2"}) {
+    const nlohmann::json& m = j.at("methods").at("blendmap").at(mip);
+    EXPECT_DOUBLE_EQ(m.at("direct").at("cost_vs_direct").get<double>(), 1.0) << mip;
+    for (const char* strategy : {"direct", "prefiltered", "supersample:2"}) {
+      const double ms = m.at(strategy).at("ms_per_page").get<double>();
+      EXPECT_TRUE(std::isfinite(ms) && ms > 0.0) << strategy << " mip " << mip;
+      EXPECT_FALSE(m.at(strategy).contains("psnr_db")) << strategy << " mip " << mip;
+    }
+    EXPECT_FALSE(m.contains("ground_truth")) << mip;
+    EXPECT_FALSE(m.contains("target_met")) << mip;
+  }
+  EXPECT_FALSE(fs::exists(dir / "costs.svg"));  // nothing to plot without PSNR
+  fs::remove_all(dir);
+}
+
 TEST(BenchMipsCli, BadFlagsNameTheFlagAndWriteNothing) {
   const fs::path dir = tvt::test::fresh_test_dir("tvt_bench_mips_bad");
   const std::string scene = tvt::test::write_small_default_scene(dir);
@@ -83,6 +114,7 @@ TEST(BenchMipsCli, BadFlagsNameTheFlagAndWriteNothing) {
       {"--pages 0", "--pages"},
       {"--repeats 0", "--repeats"},
       {"--svg " + (dir / "missing" / "x.svg").string(), "--svg"},
+      {"--cost-only --svg " + (dir / "x.svg").string(), "--svg"},  // a plot of PSNR, which it does not measure
   };
   for (const auto& [flags, field] : cases) {
     std::string out;
