@@ -273,14 +273,16 @@ struct Ctx {
   }
 
   // The feature at global material texel (gx, gy): its mask d, soft f, the weight p at its
-  // centroid (cx, cy) (every texel of a feature shares it; `plain` off features) and whether it
-  // is visible, eq 3.1: sgn(floor(p Cf / r)).
+  // centroid (cx, cy) (every texel of a feature shares it; `plain` off features, and for every
+  // feature where `at_centroid` is false: the prefiltered expectation's decisions take the
+  // footprint's weight, as the expectation they fade into does) and whether it is visible,
+  // eq 3.1: sgn(floor(p Cf / r)).
   struct Feature {
     double d = 0.0, f = 0.0, p = 0.0;
     int64_t cx = 0, cy = 0;
     bool visible = false;
   };
-  Feature feature_at(const gpu::TvtMaterial& m, int64_t gx, int64_t gy, double plain) const {
+  Feature feature_at(const gpu::TvtMaterial& m, int64_t gx, int64_t gy, double plain, bool at_centroid) const {
     const int64_t R = m.resolution;
     const std::span<const uint32_t> meta = s.meta(index_of(m));
     const size_t mi = size_t(tvt_floor_mod(gy, R) * R + tvt_floor_mod(gx, R));
@@ -293,7 +295,7 @@ struct Ctx {
     ft.cy = gy + int16_t(w0 >> 16);
     const int64_t cx_fp = tvt_floor_div((2 * ft.cx + 1) * m.period_fp, 2 * R);
     const int64_t cy_fp = tvt_floor_div((2 * ft.cy + 1) * m.period_fp, 2 * R);
-    ft.p = ft.d > 0.0 ? weight(m.weight_layer, cx_fp, cy_fp) : plain;
+    ft.p = ft.d > 0.0 && at_centroid ? weight(m.weight_layer, cx_fp, cy_fp) : plain;
     const double r = gpu::tvt_rand01(gpu::tvt_hash_coord(ft.cx, ft.cy, m.fbpb_salt));
     ft.visible = ft.d > 0.0 && ft.p > 0.0 && r <= ft.p * double(m.cf);
     return ft;
@@ -306,7 +308,7 @@ struct Ctx {
                     glm::dvec4& colour, bool& visible) const {
     const int64_t R = m.resolution;
     const int64_t lx = tvt_floor_mod(gx, R), ly = tvt_floor_mod(gy, R);
-    const Feature ft = feature_at(m, gx, gy, plain);
+    const Feature ft = feature_at(m, gx, gy, plain, true);
     double d = ft.d;
     visible = ft.visible;
     if (visible && ft.p < 1.0) {
@@ -670,46 +672,39 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
         const double nf_ground =
             with_dpt ? clamp01(non_feature - ground_slope * local.moment.a / std::max(1.0 - local.fraction, 1e-3)) : nf;
         const double nf_chip = with_dpt ? clamp01(non_feature + ground_slope * local.moment.a / std::max(local.fraction, 1e-3)) : nf;
-        // w of a feature texel (visible with probability min(p Cf, 1)) and of a non-feature one.
         // A visible feature's texel where its p < 1 is chipped (Algorithm 1) with the share q of
         // the variation map below the threshold: then it blends as ground (w_chip) in a colour
-        // darkened by colour_coeff. chip_feature: the chipped texels' part of w_feature.
+        // darkened by colour_coeff.
         const double q = c.chipped_share(m);
         const double w_chip = std::min(nf_chip * double(m.cn), 1.0);
         const double q_plain = plain < 1.0 ? q : 0.0;
         const double visible_p = std::min(plain * double(m.cf), 1.0);
-        double w_feature =
-            visible_p * ((1.0 - q_plain) * std::min(double(m.cm) * std::max(plain, local.soft), 1.0) + q_plain * w_chip);
-        double chip_feature = visible_p * q_plain * w_chip;
-        double chip_share = visible_p * q_plain;  // the footprint's feature texels that are chipped
-        // While few features fall in the footprint, their own decisions: the mean w of the
-        // features under k x k points spread over it (k = 1 while a feature spans it, up to 4
-        // where 16 do), faded to the expectation as more fall in (docs/composition.md).
+        // The share of the footprint's features that show: while few fall in it, their own
+        // decisions under k x k points spread over it (k = 1 while a feature spans it, up to 4
+        // where 16 do), faded to the expectation as more fall in (docs/composition.md). Each is
+        // decided at the footprint's weight, as the expectation is, not at its own centroid.
+        double visible_share = visible_p;
         const double rel = lod - c.stat(m, gpu::TVT_STATS_FEATURE_LOG2_SIZE);
         const double e = 1.0 - ramp(rel, 2.0, 3.0);
         if (e > 0.0) {
           const int k = 1 << std::clamp(int(std::ceil(rel)) + 1, 0, 2);
           const int64_t step = std::max<int64_t>(1, std::llround(std::exp2(lod) / k));
-          double decided = 0.0, chipped = 0.0, chipped_share = 0.0;
-          int hits = 0;
+          int hits = 0, shown = 0;
           for (int j = 0; j < k; ++j)
             for (int i = 0; i < k; ++i) {
-              const Ctx::Feature ft =
-                  c.feature_at(m, gx + (((2 * i + 1 - k) * step) >> 1), gy + (((2 * j + 1 - k) * step) >> 1), plain);
-              if (ft.d <= 0.0) continue;
-              const double qf = ft.visible && ft.p < 1.0 ? q : 0.0;
-              const double wc = std::min((with_dpt ? nf_chip : ft.p) * double(m.cn), 1.0);
-              decided += ft.visible ? (1.0 - qf) * std::min(double(m.cm) * std::max(ft.p, local.soft), 1.0) + qf * wc : 0.0;
-              chipped += qf * wc;
-              chipped_share += qf;
-              ++hits;
+              const Ctx::Feature ft = c.feature_at(m, gx + (((2 * i + 1 - k) * step) >> 1),
+                                                   gy + (((2 * j + 1 - k) * step) >> 1), plain, false);
+              hits += ft.d > 0.0 ? 1 : 0;
+              shown += ft.visible ? 1 : 0;
             }
-          if (hits > 0) {
-            w_feature = e * decided / hits + (1.0 - e) * w_feature;
-            chip_feature = e * chipped / hits + (1.0 - e) * chip_feature;
-            chip_share = e * chipped_share / hits + (1.0 - e) * chip_share;
-          }
+          if (hits > 0) visible_share = e * double(shown) / double(hits) + (1.0 - e) * visible_p;
         }
+        // The footprint's feature texels, each feature shown or not: their mean w (eq 3.1 at the
+        // footprint's weight, the chipped share q_plain as ground) and its chipped texels' part.
+        const double w_feature =
+            visible_share * ((1.0 - q_plain) * std::min(double(m.cm) * std::max(plain, local.soft), 1.0) + q_plain * w_chip);
+        const double chip_feature = visible_share * q_plain * w_chip;
+        const double chip_share = visible_share * q_plain;  // the footprint's feature texels that are chipped
         const double w_ground = std::min(nf_ground * double(m.cn), 1.0);
         const double expected = local.fraction * w_feature + (1.0 - local.fraction) * w_ground;
         fallback = fade0 * expected + (1.0 - fade0) * fallback;

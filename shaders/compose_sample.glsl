@@ -415,10 +415,10 @@ void feature_stats(int n, float u, float v, float lod, out vec2 df, out vec4 mom
 }
 
 // The feature at global material texel (gx, gy): its mask d, soft f, the weight p at its
-// centroid (cx, cy) (`plain` off features) and whether it is visible (eq 3.1);
-// reference_compositor.cpp feature_at.
-bool feature_at(int n, int64_t gx, int64_t gy, float plain, out float d, out float f, out float pw, out int64_t cx,
-                out int64_t cy) {
+// centroid (cx, cy) (`plain` off features, and for every feature where `at_centroid` is false)
+// and whether it is visible (eq 3.1); reference_compositor.cpp feature_at.
+bool feature_at(int n, int64_t gx, int64_t gy, float plain, bool at_centroid, out float d, out float f, out float pw,
+                out int64_t cx, out int64_t cy) {
   const int64_t R = int64_t(P.materials[n].resolution);
   const uint mi = P.materials[n].meta_offset + uint((gy & (R - 1)) * R + (gx & (R - 1)));
   const uint w0 = meta_texels[2u * mi], w1 = meta_texels[2u * mi + 1u];
@@ -430,7 +430,7 @@ bool feature_at(int n, int64_t gx, int64_t gy, float plain, out float d, out flo
   const int shift = P.materials[n].log2_resolution + 1;  // / 2R, a power of two
   const int64_t cx_fp = ((2 * cx + 1) * period) >> shift;
   const int64_t cy_fp = ((2 * cy + 1) * period) >> shift;
-  pw = d > 0.0 ? weight_at(P.materials[n].weight_layer, cx_fp, cy_fp) : plain;
+  pw = d > 0.0 && at_centroid ? weight_at(P.materials[n].weight_layer, cx_fp, cy_fp) : plain;
   const float r = tvt_rand01(tvt_hash_coord(cx, cy, P.materials[n].fbpb_salt));
   return d > 0.0 && pw > 0.0 && r <= pw * P.materials[n].cf;
 }
@@ -757,7 +757,7 @@ float fbpb_exact(int n, int64_t gx, int64_t gy, float plain, bool with_dpt, floa
   const int64_t lx = gx & (R - 1), ly = gy & (R - 1);
   float d, f, pw;
   int64_t cx, cy;
-  visible = feature_at(n, gx, gy, plain, d, f, pw, cx, cy);
+  visible = feature_at(n, gx, gy, plain, true, d, f, pw, cx, cy);
   if (visible && pw < 1.0) {
     const uint hv = tvt_hash_coord(cx, cy, P.materials[n].variation_salt);
     const int64_t vx = (lx + int64_t(hv & 0xffffu)) & (R - 1);
@@ -865,41 +865,38 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
         const float nf_chip = with_dpt ? clamp01(non_feature + ground_slope * feature_moment.a / max(df.x, 1e-3)) : nf;
         // A visible feature's texel where its p < 1 is chipped (Algorithm 1) with the share q of
         // the variation map below the threshold: then it blends as ground (w_chip) in a colour
-        // darkened by colour_coeff. chip_feature: the chipped texels' part of w_feature.
+        // darkened by colour_coeff.
         const float q = chipped_share(n);
         const float w_chip = min(nf_chip * P.materials[n].cn, 1.0);
         const float q_plain = plain < 1.0 ? q : 0.0;
         const float visible_p = min(plain * P.materials[n].cf, 1.0);
-        float w_feature = visible_p * mix(min(P.materials[n].cm * max(plain, df.y), 1.0), w_chip, q_plain);
-        float chip_feature = visible_p * q_plain * w_chip;
-        float chip_share = visible_p * q_plain;  // the footprint's feature texels that are chipped
+        // The share of the footprint's features that show: while few fall in it, their own
+        // decisions under k x k points spread over it (k = 1 while a feature spans it, up to 4
+        // where 16 do), faded to the expectation as more fall in (docs/composition.md). Each is
+        // decided at the footprint's weight, as the expectation is, not at its own centroid.
+        float visible_share = visible_p;
         const float rel = lod - material_stat(n, TVT_STATS_FEATURE_LOG2_SIZE);
         const float e = 1.0 - ramp(rel, 2.0, 3.0);
         if (e > 0.0) {
           const int k = 1 << clamp(int(ceil(rel)) + 1, 0, 2);
           const int64_t step = int64_t(max(1.0, round(exp2(lod) / float(k))));
-          float decided = 0.0, chipped = 0.0, chipped_share = 0.0;
-          int hits = 0;
+          int hits = 0, shown = 0;
           for (int j = 0; j < k; ++j)
             for (int i = 0; i < k; ++i) {
               float fd, ff, fp;
               int64_t fcx, fcy;
               const bool fvisible = feature_at(n, gx + ((int64_t(2 * i + 1 - k) * step) >> 1),
-                                               gy + ((int64_t(2 * j + 1 - k) * step) >> 1), plain, fd, ff, fp, fcx, fcy);
-              if (fd <= 0.0) continue;
-              const float qf = fvisible && fp < 1.0 ? q : 0.0;
-              const float wc = min((with_dpt ? nf_chip : fp) * P.materials[n].cn, 1.0);
-              decided += fvisible ? mix(min(P.materials[n].cm * max(fp, df.y), 1.0), wc, qf) : 0.0;
-              chipped += qf * wc;
-              chipped_share += qf;
-              ++hits;
+                                               gy + ((int64_t(2 * j + 1 - k) * step) >> 1), plain, false, fd, ff, fp, fcx, fcy);
+              hits += fd > 0.0 ? 1 : 0;
+              shown += fvisible ? 1 : 0;
             }
-          if (hits > 0) {
-            w_feature = e * decided / float(hits) + (1.0 - e) * w_feature;
-            chip_feature = e * chipped / float(hits) + (1.0 - e) * chip_feature;
-            chip_share = e * chipped_share / float(hits) + (1.0 - e) * chip_share;
-          }
+          if (hits > 0) visible_share = mix(visible_p, float(shown) / float(hits), e);
         }
+        // The footprint's feature texels, each feature shown or not: their mean w (eq 3.1 at the
+        // footprint's weight, the chipped share q_plain as ground) and its chipped texels' part.
+        const float w_feature = visible_share * mix(min(P.materials[n].cm * max(plain, df.y), 1.0), w_chip, q_plain);
+        const float chip_feature = visible_share * q_plain * w_chip;
+        const float chip_share = visible_share * q_plain;  // the footprint's feature texels that are chipped
         const float w_ground = min(nf_ground * P.materials[n].cn, 1.0);
         const float expected = df.x * w_feature + (1.0 - df.x) * w_ground;
         fallback = fade0 * expected + (1.0 - fade0) * fallback;
