@@ -21,19 +21,20 @@ size_t count(const std::string& text, const std::string& what) {
   return n;
 }
 
-// `terravt bench mips` on the small default scene written into `dir`, with these flags and
-// --json `json`; its exit status, its output in `out`.
-int run_bench_mips(const fs::path& dir, const std::string& flags, const fs::path& json, std::string& out) {
-  const std::string scene = tvt::test::write_small_default_scene(dir);
+// `terravt bench mips` in `dir` on `scene` with these flags and --json `json`; its exit
+// status, its output in `out`.
+int run_bench_mips(const fs::path& dir, const std::string& scene, const std::string& flags, const fs::path& json,
+                   std::string& out) {
   return tvt::test::run_terravt(dir, "bench mips --scene " + scene + " " + flags + " --json " + json.string(), out);
 }
 }  // namespace
 
 TEST(BenchMipsCli, WritesJsonAndOnePlotPanelPerMethodWithACurvePerStrategy) {
   const fs::path dir = tvt::test::fresh_test_dir("tvt_bench_mips");
+  const std::string scene = tvt::test::write_small_default_scene(dir);
   const fs::path json_path = dir / "mips.json";
   std::string out;
-  ASSERT_EQ(run_bench_mips(dir, "--method blendmap,dpt2 --mips 1,2 --pages 1 --repeats 1", json_path, out), 0) << out;
+  ASSERT_EQ(run_bench_mips(dir, scene, "--method blendmap,dpt2 --mips 1,2 --pages 1 --repeats 1", json_path, out), 0) << out;
   EXPECT_EQ(count(out, "target (prefiltered, the default: >= 35 dB at <= 2x direct): met at mips "), 2u) << out;
   std::ifstream in(json_path);
   const nlohmann::json j = nlohmann::json::parse(in);
@@ -74,9 +75,10 @@ TEST(BenchMipsCli, WritesJsonAndOnePlotPanelPerMethodWithACurvePerStrategy) {
 
 TEST(BenchMipsCli, CostOnlyTimesTheStrategiesWithoutTheGroundTruth) {
   const fs::path dir = tvt::test::fresh_test_dir("tvt_bench_mips_cost");
+  const std::string scene = tvt::test::write_small_default_scene(dir);
   const fs::path json_path = dir / "costs.json";
   std::string out;
-  ASSERT_EQ(run_bench_mips(dir, "--method blendmap --mips 1,2 --pages 1 --repeats 1 --cost-only", json_path, out), 0) << out;
+  ASSERT_EQ(run_bench_mips(dir, scene, "--method blendmap --mips 1,2 --pages 1 --repeats 1 --cost-only", json_path, out), 0) << out;
   EXPECT_EQ(out.find("level-0 pages composed"), std::string::npos) << out;  // no truth composed
   EXPECT_EQ(count(out, "not judged (--cost-only: no ground truth)"), 1u) << out;
   std::ifstream in(json_path);
@@ -99,6 +101,7 @@ TEST(BenchMipsCli, CostOnlyTimesTheStrategiesWithoutTheGroundTruth) {
 
 TEST(BenchMipsCli, BadFlagsNameTheFlagAndWriteNothing) {
   const fs::path dir = tvt::test::fresh_test_dir("tvt_bench_mips_bad");
+  const std::string scene = tvt::test::write_small_default_scene(dir);
   const fs::path json_path = dir / "m.json";
   const std::pair<std::string, std::string> cases[] = {
       {"--method nope", "--method"},
@@ -112,7 +115,7 @@ TEST(BenchMipsCli, BadFlagsNameTheFlagAndWriteNothing) {
   };
   for (const auto& [flags, field] : cases) {
     std::string out;
-    EXPECT_NE(run_bench_mips(dir, "--mips 1 --pages 1 --repeats 1 " + flags, json_path, out), 0) << flags;
+    EXPECT_NE(run_bench_mips(dir, scene, "--mips 1 --pages 1 --repeats 1 " + flags, json_path, out), 0) << flags;
     EXPECT_NE(out.find(field), std::string::npos) << flags << ": " << out;
     EXPECT_FALSE(fs::exists(json_path)) << flags;
   }

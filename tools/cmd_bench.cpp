@@ -393,74 +393,74 @@ int run_bench_mips(const BenchMipsArgs& a) {
           if (!t) return fail(cmd, t.error().message, 1);
           best[i] = std::min(best[i], t.value());
         }
-      if (a.cost_only) {  // the costs alone, to two places: what comparing two builds reads
-        for (size_t i = 0; i < strategies.size(); ++i) {
-          const std::string name = to_string(strategies[i]);
-          const double ms = 1000.0 * best[i] / double(pages.size()), cost = best[i] / best[0];
-          std::printf("%4u %-16s %12.2f %10s %11.2fx\n", m, name.c_str(), ms, "-", cost);
-          j["methods"][method_name][std::to_string(m)][name] = {{"ms_per_page", ms}, {"cost_vs_direct", cost}};
-        }
-        continue;
-      }
-      // The truth: level-0 pages composed directly (32 at a time), box-filtered up to mip m.
-      gpu::TvtComposeParams level0 = packed->params;
-      level0.supersample = 1;
-      level0.prefiltered = 0;
-      StoreDesc desc;
-      desc.vt = vt;
-      FilteredPyramid pyramid(desc, [&](std::span<const PageId> ids, std::vector<std::vector<uint8_t>>& out) -> Status {
-        c.set_params(level0);
-        auto composed = c.compose_pages(ids);
-        if (!composed) return composed.error();
-        out = std::move(composed.value());
-        return Ok{};
-      }, PageLookup{}, FilteredPyramid::Options{});
-      const auto t0 = std::chrono::steady_clock::now();
+      // The truth (not with --cost-only): level-0 pages composed directly (32 at a time),
+      // box-filtered up to mip m.
       std::vector<std::vector<uint8_t>> truth;
-      pyramid.prepare(pages, false);
-      for (const PageId& page : pages) {
-        auto t = pyramid.payload(page);
-        if (!t) return fail(cmd, t.error().message, 1);
-        truth.push_back(std::move(t.value()));
+      double truth_s = 0.0;
+      unsigned long long truth_pages = 0;
+      if (!a.cost_only) {
+        gpu::TvtComposeParams level0 = packed->params;
+        level0.supersample = 1;
+        level0.prefiltered = 0;
+        StoreDesc desc;
+        desc.vt = vt;
+        FilteredPyramid pyramid(desc, [&](std::span<const PageId> ids, std::vector<std::vector<uint8_t>>& out) -> Status {
+          c.set_params(level0);
+          auto composed = c.compose_pages(ids);
+          if (!composed) return composed.error();
+          out = std::move(composed.value());
+          return Ok{};
+        }, PageLookup{}, FilteredPyramid::Options{});
+        const auto t0 = std::chrono::steady_clock::now();
+        pyramid.prepare(pages, false);
+        for (const PageId& page : pages) {
+          auto t = pyramid.payload(page);
+          if (!t) return fail(cmd, t.error().message, 1);
+          truth.push_back(std::move(t.value()));
+        }
+        truth_s = seconds_since(t0);
+        truth_pages = pyramid.composed_pages();
       }
-      const double truth_s = seconds_since(t0);
       for (size_t i = 0; i < strategies.size(); ++i) {
+        const std::string name = to_string(strategies[i]);
+        const double ms = 1000.0 * best[i] / double(pages.size()), cost = best[i] / best[0];
+        nlohmann::json& row = j["methods"][method_name][std::to_string(m)][name];
+        row = {{"ms_per_page", ms}, {"cost_vs_direct", cost}};
+        if (a.cost_only) {  // the costs alone, to two places: what comparing two builds reads
+          std::printf("%4u %-16s %12.2f %10s %11.2fx\n", m, name.c_str(), ms, "-", cost);
+          continue;
+        }
         double psnr = 0;
         for (size_t p = 0; p < pages.size(); ++p) psnr += psnr_rgb(page_payload(vt, results[i][p]), truth[p]);
         psnr /= double(pages.size());
-        const std::string name = to_string(strategies[i]);
-        const double ms = 1000.0 * best[i] / double(pages.size()), cost = best[i] / best[0];
+        row["psnr_db"] = psnr;
         std::printf("%4u %-16s %12.2f %10.2f %11.1fx\n", m, name.c_str(), ms, psnr, cost);
-        j["methods"][method_name][std::to_string(m)][name] = {{"ms_per_page", ms}, {"psnr_db", psnr}, {"cost_vs_direct", cost}};
         const MipStrategy& st = strategies[i];
         if (st.prefiltered) {
-          char row[64];
+          char verdict[64];
           const bool met = psnr >= k_mips_target_db && cost <= k_mips_target_cost;
-          std::snprintf(row, sizeof row, met ? "%u" : "%u (%.2f dB, %.2fx)", m, psnr, cost);
+          std::snprintf(verdict, sizeof verdict, met ? "%u" : "%u (%.2f dB, %.2fx)", m, psnr, cost);
           std::string& list = met ? target_met : target_missed;
-          list += (list.empty() ? "" : ", ") + std::string(row);
+          list += (list.empty() ? "" : ", ") + std::string(verdict);
           j["methods"][method_name][std::to_string(m)]["target_met"] = met;
         }
         PlotSeries& curve = curves[st.prefiltered ? 1 : st.supersample <= 1 ? 0 : 1 + std::countr_zero(st.supersample)];
         curve.name = name;
         curve.points.push_back(PlotPoint{cost, psnr, "m" + std::to_string(m)});
       }
+      if (a.cost_only) continue;
       std::printf("%4u %-16s %12.2f %10s %11.1fx   (%llu level-0 pages composed, box-filtered; timed once)\n", m,
-                  "ground truth", 1000.0 * truth_s / double(pages.size()), "-", truth_s / best[0],
-                  (unsigned long long)pyramid.composed_pages());
+                  "ground truth", 1000.0 * truth_s / double(pages.size()), "-", truth_s / best[0], truth_pages);
       j["methods"][method_name][std::to_string(m)]["ground_truth"] = {{"ms_per_page", 1000.0 * truth_s / double(pages.size())},
                                                                         {"cost_vs_direct", truth_s / best[0]}};
     }
     for (auto& [s, curve] : curves) panel.series.push_back(std::move(curve));
     panels.push_back(std::move(panel));
-    if (a.cost_only) {
-      std::printf("target (prefiltered, the default: >= %.0f dB at <= %.0fx direct): not judged (--cost-only: no ground truth)\n\n",
-                  k_mips_target_db, k_mips_target_cost);
-      continue;
-    }
-    std::printf("target (prefiltered, the default: >= %.0f dB at <= %.0fx direct): met at mips %s; not met at mips %s\n\n",
-                k_mips_target_db, k_mips_target_cost, target_met.empty() ? "-" : target_met.c_str(),
-                target_missed.empty() ? "-" : target_missed.c_str());
+    const std::string verdict = a.cost_only ? "not judged (--cost-only: no ground truth)"
+                                            : "met at mips " + (target_met.empty() ? "-" : target_met) + "; not met at mips " +
+                                                  (target_missed.empty() ? "-" : target_missed);
+    std::printf("target (prefiltered, the default: >= %.0f dB at <= %.0fx direct): %s\n\n", k_mips_target_db,
+                k_mips_target_cost, verdict.c_str());
   }
   if (!a.json_out.empty())
     if (auto w = write_text_file(a.json_out, j.dump(2) + "\n"); !w) return fail(cmd, "--json: " + w.error().message, 1);
