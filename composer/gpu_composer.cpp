@@ -51,6 +51,18 @@ bool patch_cell_is_narrow(const gpu::TvtComposeParams& p, double patch_texels) {
   return lattice_is_narrow(p, patch_texels + 1.0);
 }
 
+// compose_sample()'s FBPB points: each reads the weight at the centroid of the feature under it,
+// within half the footprint of its centre and a feature's reach of the point. A meta-texture's
+// offsets stay inside one tile (R material texels, one period), the centroid a texel's centre
+// on, + 1 for the fixed-point rounding; twice that reach a side must fall in two adjacent
+// weight cells (the centre's and its nearer neighbour, WeightBlock).
+bool feature_weights_are_narrow(const gpu::TvtComposeParams& p, const gpu::TvtMaterial& m, double footprint) {
+  if (m.period_fp <= 0 || m.resolution <= 0) return false;
+  const double period = double(m.period_fp) / 256.0;
+  const double reach = 0.5 * footprint + period * (1.0 + 1.0 / double(m.resolution)) + 1.0;
+  return lattice_is_narrow(p, 2.0 * reach);
+}
+
 // A DPT layer of a material with DPT that level 0 shows (its fade at one texel a texel), so
 // the prefiltered maths do (dpt()'s `present`).
 bool dpt_layer_present(const gpu::TvtMaterial& m, int k) {
@@ -132,14 +144,19 @@ uint32_t prefiltered_reach(const gpu::TvtComposeParams& p, uint32_t mip, uint32_
       const float fade_end = std::max(m.fbpb_fade_hi, m.fbpb_fade_lo) + gpu::TVT_FEATURE_POINTS_LODS,
                   fade_top = fade_end + 1.0f;
       const bool fade0_positive = ramp_is_below_one(m.lod_bias, m.fbpb_fade_lo, m.fbpb_fade_hi);
+      bool features = false;
       if (exact_ratio) {
         const float lod = float(e - 1) + m.lod_bias;
-        if (ramp_is_below_one(lod, fade_end, fade_top) && fade0_positive) parts |= gpu::TVT_PART_FEATURES;  // fade > 0
+        if (ramp_is_below_one(lod, fade_end, fade_top) && fade0_positive) features = true;  // fade > 0
         if (ramp_is_positive(lod, fade_end, fade_top) && fade0_positive) parts |= gpu::TVT_PART_FEATURE_EXPECT;
       } else {
         const double lod = std::log2(footprint) + double(m.lod_bias), slack = 1e-3;  // a float log2
-        if (lod - slack < double(fade_top) && fade0_positive) parts |= gpu::TVT_PART_FEATURES;
+        if (lod - slack < double(fade_top) && fade0_positive) features = true;
         if (lod + slack > double(fade_end) && fade0_positive) parts |= gpu::TVT_PART_FEATURE_EXPECT;
+      }
+      if (features) {
+        parts |= gpu::TVT_PART_FEATURES;
+        if (!feature_weights_are_narrow(p, m, footprint)) parts |= gpu::TVT_PART_FEATURE_WEIGHTS_WIDE;
       }
     }
   }

@@ -126,6 +126,43 @@ float weight_at(int layer, int64_t x_fp, int64_t y_fp) {
   return clamp01(mix(mix(w00, w10, fx), mix(w01, w11, fx), fy));
 }
 
+// The 3 x 3 weight texels around a prefiltered texel that hold every weight its FBPB points'
+// feature centroids read, where the composer has found them all within half a weight texel of
+// the footprint's centre (TVT_PART_FEATURE_WEIGHTS_WIDE clear): the centre's cell and its
+// nearer neighbour a side, so each centroid's cell is `x` or the next (`y` likewise).
+struct WeightBlock {
+  int x, y;
+  vec3 row0, row1, row2;
+};
+WeightBlock weight_block(int layer, int64_t x_fp, int64_t y_fp) {
+  WeightBlock b;
+  int cell, c0, c1;
+  float f;
+  weight_axis(x_fp, P.weight_width, cell, c0, c1, f);
+  b.x = f < 0.5 ? cell - 1 : cell;
+  weight_axis(y_fp, P.weight_height, cell, c0, c1, f);
+  b.y = f < 0.5 ? cell - 1 : cell;
+  const ivec3 tx = clamp(ivec3(b.x) + ivec3(0, 1, 2), ivec3(0), ivec3(P.weight_width - 1));
+  const ivec3 ty = clamp(ivec3(b.y) + ivec3(0, 1, 2), ivec3(0), ivec3(P.weight_height - 1));
+  b.row0 = vec3(weight_texel(layer, tx.x, ty.x), weight_texel(layer, tx.y, ty.x), weight_texel(layer, tx.z, ty.x));
+  b.row1 = vec3(weight_texel(layer, tx.x, ty.y), weight_texel(layer, tx.y, ty.y), weight_texel(layer, tx.z, ty.y));
+  b.row2 = vec3(weight_texel(layer, tx.x, ty.z), weight_texel(layer, tx.y, ty.z), weight_texel(layer, tx.z, ty.z));
+  return b;
+}
+WeightBlock no_weight_block() { return WeightBlock(0, 0, vec3(0.0), vec3(0.0), vec3(0.0)); }
+// weight_at() from the block: the same cells, fractions and texels, so the same value.
+float block_weight(WeightBlock b, int64_t x_fp, int64_t y_fp) {
+  int cx, cy, c0, c1;
+  float fx, fy;
+  weight_axis(x_fp, P.weight_width, cx, c0, c1, fx);
+  weight_axis(y_fp, P.weight_height, cy, c0, c1, fy);
+  const bool next_x = cx != b.x, next_y = cy != b.y;
+  const vec3 top = next_y ? b.row1 : b.row0, bottom = next_y ? b.row2 : b.row1;
+  const float w00 = next_x ? top.y : top.x, w10 = next_x ? top.z : top.y;
+  const float w01 = next_x ? bottom.y : bottom.x, w11 = next_x ? bottom.z : bottom.y;
+  return clamp01(mix(mix(w00, w10, fx), mix(w01, w11, fx), fy));
+}
+
 // Resolutions are powers of two, so wrapping is a mask (also right for negative indices) and
 // the level offsets have closed forms (compose_types.h).
 vec4 material_texel(int n, int level, int x, int y) {
@@ -415,10 +452,11 @@ void feature_stats(int n, float u, float v, float lod, out vec2 df, out vec4 mom
 }
 
 // The feature at global material texel (gx, gy): its mask d, soft f, the weight p at its
-// centroid (cx, cy) (`plain` off features, and for every feature where `at_centroid` is false)
-// and whether it is visible (eq 3.1); reference_compositor.cpp feature_at.
-bool feature_at(int n, int64_t gx, int64_t gy, float plain, bool at_centroid, out float d, out float f, out float pw,
-                out int64_t cx, out int64_t cy) {
+// centroid (cx, cy) (`plain` off features, and for every feature where `at_centroid` is false;
+// from `block` where `in_block`, see WeightBlock) and whether it is visible (eq 3.1);
+// reference_compositor.cpp feature_at.
+bool feature_at(int n, int64_t gx, int64_t gy, float plain, bool at_centroid, bool in_block, WeightBlock block,
+                out float d, out float f, out float pw, out int64_t cx, out int64_t cy) {
   const int64_t R = int64_t(P.materials[n].resolution);
   const uint mi = P.materials[n].meta_offset + uint((gy & (R - 1)) * R + (gx & (R - 1)));
   const uint w0 = meta_texels[2u * mi], w1 = meta_texels[2u * mi + 1u];
@@ -430,7 +468,12 @@ bool feature_at(int n, int64_t gx, int64_t gy, float plain, bool at_centroid, ou
   const int shift = P.materials[n].log2_resolution + 1;  // / 2R, a power of two
   const int64_t cx_fp = ((2 * cx + 1) * period) >> shift;
   const int64_t cy_fp = ((2 * cy + 1) * period) >> shift;
-  pw = d > 0.0 && at_centroid ? weight_at(P.materials[n].weight_layer, cx_fp, cy_fp) : plain;
+  pw = plain;
+  if (d > 0.0 && at_centroid) {
+    // The part bit folds the block's path away where the composer has not proven it.
+    if (in_block && !part(TVT_PART_FEATURE_WEIGHTS_WIDE)) pw = block_weight(block, cx_fp, cy_fp);
+    else pw = weight_at(P.materials[n].weight_layer, cx_fp, cy_fp);
+  }
   const float r = tvt_rand01(tvt_hash_coord(cx, cy, P.materials[n].fbpb_salt));
   return d > 0.0 && pw > 0.0 && r <= pw * P.materials[n].cf;
 }
@@ -751,13 +794,13 @@ float chipped_share(int n) {
 // FBPB's w at global material texel (gx, gy): eq 3.1 with Algorithm 1's chipped holes (which
 // darken `colour`, the material there, and show the layer below); `non_feature` is what a
 // non-feature texel blends with under FBPB+DPT (`with_dpt`). reference_compositor.cpp fbpb_exact.
-float fbpb_exact(int n, int64_t gx, int64_t gy, float plain, bool with_dpt, float non_feature, inout vec4 colour,
-                 out bool visible) {
+float fbpb_exact(int n, int64_t gx, int64_t gy, float plain, bool with_dpt, float non_feature, bool in_block,
+                 WeightBlock block, inout vec4 colour, out bool visible) {
   const int64_t R = int64_t(P.materials[n].resolution);
   const int64_t lx = gx & (R - 1), ly = gy & (R - 1);
   float d, f, pw;
   int64_t cx, cy;
-  visible = feature_at(n, gx, gy, plain, true, d, f, pw, cx, cy);
+  visible = feature_at(n, gx, gy, plain, true, in_block, block, d, f, pw, cx, cy);
   if (visible && pw < 1.0) {
     const uint hv = tvt_hash_coord(cx, cy, P.materials[n].variation_salt);
     const int64_t vx = (lx + int64_t(hv & 0xffffu)) & (R - 1);
@@ -886,7 +929,8 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
               float fd, ff, fp;
               int64_t fcx, fcy;
               const bool fvisible = feature_at(n, gx + ((int64_t(2 * i + 1 - k) * step) >> 1),
-                                               gy + ((int64_t(2 * j + 1 - k) * step) >> 1), plain, false, fd, ff, fp, fcx, fcy);
+                                               gy + ((int64_t(2 * j + 1 - k) * step) >> 1), plain, false, false, no_weight_block(), fd,
+                                               ff, fp, fcx, fcy);
               hits += fd > 0.0 ? 1 : 0;
               shown += fvisible ? 1 : 0;
             }
@@ -920,6 +964,10 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
         const int64_t mask = int64_t(P.materials[n].resolution - 1);
         const int64_t rx = x_fp * int64_t(P.materials[n].resolution) - gx * P.materials[n].period_fp;
         const int64_t ry = y_fp * int64_t(P.materials[n].resolution) - gy * P.materials[n].period_fp;
+        // Prefiltered: the centroids' weights from one 3 x 3 fetch where the composer has found
+        // them all within it (WeightBlock), not four fetches a point.
+        const bool in_block = prefiltered && !part(TVT_PART_FEATURE_WEIGHTS_WIDE);
+        const WeightBlock block = in_block ? weight_block(P.materials[n].weight_layer, x_fp, y_fp) : no_weight_block();
         vec4 weighted = vec4(0.0), points_colour = vec4(0.0);
         int shown = 0;
         for (int j = 0; j < kk; ++j)
@@ -936,7 +984,8 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
               c = sample_material(n, float(px & mask) + pfx, float(py & mask) + pfy, point_lod);
             }
             bool v;  // FBPB+DPT: the point's ground at its own A (ground_slope)
-            const float wi = fbpb_exact(n, px, py, plain, with_dpt, clamp01(non_feature + ground_slope * (c.a - colour.a)), c, v);
+            const float wi = fbpb_exact(n, px, py, plain, with_dpt, clamp01(non_feature + ground_slope * (c.a - colour.a)),
+                                        in_block, block, c, v);
             w += wi;
             weighted += wi * c;
             points_colour += c;

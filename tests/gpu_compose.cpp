@@ -438,7 +438,8 @@ TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureFadeWithTheFootprint)
   // and 0 there, so the expectation (and its samples) and the point value are left out.
   EXPECT_EQ(prefiltered_parts(p, 5), TVT_PART_DPT_POINT | TVT_PART_FEATURE_EXPECT);
   EXPECT_EQ(prefiltered_parts(p, 6),
-            TVT_PART_ALL & ~TVT_PART_FEATURES & ~TVT_PART_DPT_SAMPLES_WIDE & ~TVT_PART_DPT_CORNERS_WIDE);
+            TVT_PART_ALL & ~TVT_PART_FEATURES & ~TVT_PART_DPT_SAMPLES_WIDE & ~TVT_PART_DPT_CORNERS_WIDE &
+                ~TVT_PART_FEATURE_WEIGHTS_WIDE);
   EXPECT_EQ(prefiltered_parts(p, 7), TVT_PART_DPT_EXPECT | TVT_PART_DPT_SAMPLES | TVT_PART_FEATURE_EXPECT);
   // Footprint 256: four patches a side, in expectation from samples; 1024: 16, expectation alone.
   EXPECT_EQ(prefiltered_parts(p, 8), TVT_PART_DPT_EXPECT | TVT_PART_DPT_SAMPLES | TVT_PART_FEATURE_EXPECT);
@@ -462,6 +463,18 @@ TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureFadeWithTheFootprint)
     EXPECT_EQ(prefiltered_parts(p, 6) & TVT_PART_DPT_CORNERS_WIDE, wide) << size;
     EXPECT_EQ(prefiltered_parts(p, 8) & TVT_PART_DPT_CORNERS_WIDE, 0u) << size;  // no point value at footprint 256
     EXPECT_EQ(direct_parts(p), TVT_PART_ALL & ~(TVT_PART_DPT_CORNERS_WIDE & ~wide)) << size;
+  }
+  // The FBPB points' feature centroids lie within half the footprint and a tile's reach of the
+  // texel's centre (256 level-0 texels, + 2 for the centroid's half texel and the rounding):
+  // 2 + 2 * 258 = 518 texels at footprint 2, more than a weight texel every 512 less the margin
+  // (504), well within one every 1024; no weights, and direct pages, keep a fetch a point.
+  for (const int size : {2048, 1024, 0}) {
+    p.weight_width = size;
+    const uint32_t wide = size == 1024 ? 0u : TVT_PART_FEATURE_WEIGHTS_WIDE;
+    EXPECT_EQ(prefiltered_parts(p, 1) & TVT_PART_FEATURE_WEIGHTS_WIDE, wide) << size;
+    EXPECT_EQ(prefiltered_parts(p, 3) & TVT_PART_FEATURE_WEIGHTS_WIDE, wide) << size;
+    EXPECT_EQ(prefiltered_parts(p, 4) & TVT_PART_FEATURE_WEIGHTS_WIDE, 0u) << size;  // no points at LOD 4
+    EXPECT_NE(direct_parts(p) & TVT_PART_FEATURE_WEIGHTS_WIDE, 0u) << size;
   }
   p.weight_width = 512;
   // FBPB features that have faded out before the finest texture level: never in expectation.

@@ -68,7 +68,11 @@ TVT_CONST uint TVT_PART_DPT_SAMPLES_WIDE = 32u;
 // read their weights from 3 x 3 weight texels fetched once). Direct pages as well: the
 // composer clears it in its direct variant too.
 TVT_CONST uint TVT_PART_DPT_CORNERS_WIDE = 64u;
-TVT_CONST uint TVT_PART_ALL = 127u;
+// Some FBPB feature centroid that a prefiltered texel's points reach may lie half a weight
+// texel or more from the footprint's centre (else the points' centroid weights come from 3 x 3
+// weight texels fetched once per texel). Direct pages keep it: one point, one fetch.
+TVT_CONST uint TVT_PART_FEATURE_WEIGHTS_WIDE = 128u;
+TVT_CONST uint TVT_PART_ALL = 255u;
 
 // A material's texel words (texel_offset): its mip chain, level l = 0 .. log2 R of
 // (R >> l)^2 RGBA8 texels, each level l >= 1 followed by its spread chain, then the statistics
