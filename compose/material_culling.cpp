@@ -43,7 +43,10 @@ void MaterialCuller::set_params(const gpu::TvtComposeParams& p) {
     const gpu::TvtMaterial& m = p.materials[n];
     int64_t reach = 0;
     for (int k = 0; k < m.dpt_layer_count; ++k) reach = std::max(reach, 2 * ((m.dpt[k].patch_fp >> 8) + 1));
-    if (m.meta_offset != gpu::TVT_NO_META) reach += (m.period_fp >> 9) + 2;
+    // A meta-texture's centroid offsets stay inside one tile (R texels, one period; a lopsided
+    // feature's texels can be most of a tile from its centroid), + 2 for the centroid's half
+    // texel and the rounding.
+    if (m.meta_offset != gpu::TVT_NO_META) reach += (m.period_fp >> 8) + 2;
     reach_texels_.push_back(reach);
     layer_of_.push_back(m.weight_layer);
   }

@@ -4,8 +4,9 @@
 // culled pages are byte-identical to unculled ones (tests/gpu_compose.cpp).
 //
 // Reach of material n around the page footprint: one weight texel (bilinear), plus for DPT
-// twice the largest patch (corner centres lie up to 1.5 patches away), plus for FBPB half a
-// tiling period (a feature's centroid is at most half a tile from its texels).
+// twice the largest patch (corner centres lie up to 1.5 patches away), plus for FBPB a tiling
+// period (a meta-texture keeps a feature's centroid within one tile of its texels; a lopsided
+// feature's can be most of a tile away, not half).
 #pragma once
 #include <array>
 #include <cstdint>
