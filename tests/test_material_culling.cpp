@@ -70,7 +70,9 @@ TEST(MaterialCulling, ReachesFeaturesWhoseCentroidsAreAlmostATileAway) {
       for (const uint32_t t : {1u, 8u, 14u}) {
         const glm::dvec4 c = compose_texel_reference(packed.value(), 0, px * 16 + t, py * 16 + 8);
         shown += c.g > 0.0 ? 1 : 0;
-        if (!kept) EXPECT_EQ(c.g, 0.0) << px << "," << py << " texel " << t;
+        if (!kept) {
+          EXPECT_EQ(c.g, 0.0) << px << "," << py << " texel " << t;
+        }
       }
     }
   EXPECT_GT(culled, 0);
