@@ -251,8 +251,8 @@ struct Ctx {
       t.moment[c] = std::clamp(double(int8_t(uint8_t(w1 >> (8 * c)))) / 127.0, -1.0, 1.0) / double(gpu::TVT_META_MOMENT_SCALE);
     return t;
   }
-  // The chain at tile-local material texel (u, v) and material LOD `lod`, read trilinearly as the
-  // texture is (compose_sample.glsl feature_stats).
+  // The chain at tile-local material texel (u, v) and material LOD `lod`: bilinear at the level
+  // nearest the LOD, as A's spread (spread(); compose_sample.glsl feature_stats).
   FeatureStats feature_stats(const gpu::TvtMaterial& m, double u, double v, double lod) const {
     const Levels L = trilinear_levels(m, lod);
     auto bilerp = [&](int level) {
@@ -265,11 +265,7 @@ struct Ctx {
       r += feature_texel(m, level, i + 1, j + 1) * (fx * fy);
       return r;
     };
-    FeatureStats a = bilerp(L.l0);
-    if (L.t <= 0.0) return a;
-    a = a * (1 - L.t);
-    a += bilerp(L.l1) * L.t;
-    return a;
+    return bilerp(L.t < 0.5 ? L.l0 : L.l1);
   }
 
   // The feature at global material texel (gx, gy): its mask d, soft f, the weight p at its
@@ -371,8 +367,9 @@ struct Ctx {
     const glm::dvec4 v = glm::dvec4(w & 0xffu, (w >> 8) & 0xffu, (w >> 16) & 0xffu, w >> 24) / 255.0;
     return glm::dvec4(v.x, glm::dvec3(v.y, v.z, v.w) / double(gpu::TVT_SPREAD_SCALE));
   }
-  // A's distribution within the footprint at tile-local material texel (u, v) and LOD `lod`,
-  // read trilinearly as the texture is (compose_sample.glsl material_spread).
+  // A's distribution within the footprint at tile-local material texel (u, v) and LOD `lod`:
+  // bilinear at the level nearest the LOD, whose blocks are within a factor sqrt(2) of the
+  // footprint's side (compose_sample.glsl material_spread; docs/composition.md).
   glm::dvec4 spread(const gpu::TvtMaterial& m, double u, double v, double lod) const {
     const Levels L = trilinear_levels(m, lod);
     auto bilerp = [&](int level) {
@@ -382,9 +379,7 @@ struct Ctx {
       return (spread_texel(m, level, i, j) * (1 - fx) + spread_texel(m, level, i + 1, j) * fx) * (1 - fy) +
              (spread_texel(m, level, i, j + 1) * (1 - fx) + spread_texel(m, level, i + 1, j + 1) * fx) * fy;
     };
-    const glm::dvec4 a = bilerp(L.l0);
-    if (L.t <= 0.0) return a;
-    return a * (1 - L.t) + bilerp(L.l1) * L.t;
+    return bilerp(L.t < 0.5 ? L.l0 : L.l1);
   }
 
   // Material sample at a terrain position: the tiled texture, or hex-tiling where it is on.
@@ -521,7 +516,7 @@ struct Ctx {
 
   // Prefiltered DPT: while few of layer L's patches fall in the footprint, the mean and second
   // moment of its actual values at k x k points spread evenly over it (k = 2 while a patch
-  // spans the footprint, else 4) replace the expectation over random corner masks, faded to
+  // spans the footprint, else 3) replace the expectation over random corner masks, faded to
   // it between TVT_PATCH_SAMPLES_LO and _HI patches a side (compose_types.h): the footprint's
   // own few decisions, which the expectation over many does not know.
   void patch_samples(const gpu::TvtMaterial& m, const gpu::TvtDptLayer& L, int64_t x_fp, int64_t y_fp, double footprint,
@@ -529,7 +524,7 @@ struct Ctx {
     const double patches = footprint / std::max(double(L.patch_texels), 1e-6);
     const double g = ramp(patches, double(gpu::TVT_PATCH_SAMPLES_LO), double(gpu::TVT_PATCH_SAMPLES_HI));
     if (g >= 1.0) return;
-    const int k = patches <= 1.0 ? 2 : 4;
+    const int k = patches <= 1.0 ? 2 : 3;
     const auto offset = [&](int i) { return std::llround(((i + 0.5) / k - 0.5) * footprint * 256.0); };
     // The shader decides the points' corners once, on a lattice of at most 8 a side: a wider
     // span (only through rounding at the ramp's end) leaves the layer to its expectation.

@@ -296,11 +296,10 @@ vec4 sample_material(int n, float u, float v, float lod) {
   return mix(a, material_bilinear(n, l1, u, v), t);
 }
 
-// A's distribution within the footprint at (u, v) and LOD `lod`, trilinear as the texture.
+// A's distribution within the footprint at (u, v): bilinear at the level of the trilinear pair
+// (l0, l1, t) nearest the LOD (reference_compositor.cpp spread): one level's fetches, not two.
 vec4 material_spread(int n, float u, float v, int l0, int l1, float t) {
-  const vec4 a = spread_bilinear(n, l0, u, v);
-  if (t <= 0.0) return a;
-  return mix(a, spread_bilinear(n, l1, u, v), t);
+  return spread_bilinear(n, t < 0.5 ? l0 : l1, u, v);
 }
 
 // Hex-tiling at global material texel (gx + fx, gy + fy): reference_compositor.cpp hex_sample.
@@ -437,18 +436,13 @@ void feature_bilinear(int n, int level, float u, float v, out vec2 df, out vec4 
   df = mix(mix(d00, d10, fx), mix(d01, d11, fx), fy);
   moment = mix(mix(m00, m10, fx), mix(m01, m11, fx), fy);
 }
-// The chain at tile-local material texel (u, v) and material LOD `lod`, trilinear as the texture.
+// The chain at tile-local material texel (u, v) and material LOD `lod`: bilinear at the level
+// nearest the LOD, as material_spread() (reference_compositor.cpp feature_stats).
 void feature_stats(int n, float u, float v, float lod, out vec2 df, out vec4 moment) {
   int l0, l1;
   float t;
   trilinear_levels(n, lod, l0, l1, t);
-  feature_bilinear(n, l0, u, v, df, moment);
-  if (t <= 0.0) return;
-  vec2 df1;
-  vec4 moment1;
-  feature_bilinear(n, l1, u, v, df1, moment1);
-  df = mix(df, df1, t);
-  moment = mix(moment, moment1, t);
+  feature_bilinear(n, t < 0.5 ? l0 : l1, u, v, df, moment);
 }
 
 // The feature at global material texel (gx, gy): its mask d, soft f, the weight p at its
@@ -627,7 +621,7 @@ void patch_samples(int n, int k, int64_t x_fp, int64_t y_fp, float footprint, in
   const float patches = footprint / max(P.materials[n].dpt[k].patch_texels, 1e-6);
   const float g = ramp(patches, TVT_PATCH_SAMPLES_LO, TVT_PATCH_SAMPLES_HI);
   if (g >= 1.0) return;
-  const int kk = patches <= 1.0 ? 2 : 4;
+  const int kk = patches <= 1.0 ? 2 : 3;
   // The points' cells on each axis from the footprint centre's by its remainder: fewer than
   // TVT_PATCH_SAMPLES_HI patches a side put every point within 4 cells of it, so a float
   // estimate of the quotient is off by at most one and an exact integer step settles it (a

@@ -134,7 +134,7 @@ TVT_FN uint tvt_meta_chain_offset(uint res, uint level) {
 // Prefiltered DPT: where a layer's patches are few in a footprint (footprint / patch size below
 // TVT_PATCH_SAMPLES_HI), its share in expectation takes the mean and variance of the layer's
 // actual values at k x k points spread evenly over the footprint (k = 2 while a patch spans it,
-// else 4), faded to the expectation between TVT_PATCH_SAMPLES_LO and _HI patches a side.
+// else 3), faded to the expectation between TVT_PATCH_SAMPLES_LO and _HI patches a side.
 TVT_CONST float TVT_PATCH_SAMPLES_LO = 4.0;
 TVT_CONST float TVT_PATCH_SAMPLES_HI = 8.0;
 // Prefiltered FBPB: the features stay exact, at k x k points of the footprint, until this many
