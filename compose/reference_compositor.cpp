@@ -211,6 +211,9 @@ struct Ctx {
     const int l1 = std::min(l0 + 1, m.mip_count - 1);
     return {l0, l1, l1 == l0 ? 0.0 : l - l0};
   }
+  // The level of the pair nearest the LOD: the one level the second-order statistics (A's
+  // spread, the feature statistics chain) are read at (compose_sample.glsl nearest_level).
+  static int nearest_level(const Levels& L) { return L.t < 0.5 ? L.l0 : L.l1; }
 
   // Trilinear, wrapping material sample at tile-local coordinates (u, v) in [0, R).
   glm::dvec4 trilinear(const gpu::TvtMaterial& m, double u, double v, double lod) const {
@@ -265,7 +268,7 @@ struct Ctx {
       r += feature_texel(m, level, i + 1, j + 1) * (fx * fy);
       return r;
     };
-    return bilerp(L.t < 0.5 ? L.l0 : L.l1);
+    return bilerp(nearest_level(L));
   }
 
   // The feature at global material texel (gx, gy): its mask d, soft f, the weight p at its
@@ -379,7 +382,7 @@ struct Ctx {
       return (spread_texel(m, level, i, j) * (1 - fx) + spread_texel(m, level, i + 1, j) * fx) * (1 - fy) +
              (spread_texel(m, level, i, j + 1) * (1 - fx) + spread_texel(m, level, i + 1, j + 1) * fx) * fy;
     };
-    return bilerp(L.t < 0.5 ? L.l0 : L.l1);
+    return bilerp(nearest_level(L));
   }
 
   // Material sample at a terrain position: the tiled texture, or hex-tiling where it is on.

@@ -126,41 +126,52 @@ float weight_at(int layer, int64_t x_fp, int64_t y_fp) {
   return clamp01(mix(mix(w00, w10, fx), mix(w01, w11, fx), fy));
 }
 
-// The 3 x 3 weight texels around a prefiltered texel that hold every weight its FBPB points'
-// feature centroids read, where the composer has found them all within half a weight texel of
-// the footprint's centre (TVT_PART_FEATURE_WEIGHTS_WIDE clear): the centre's cell and its
-// nearer neighbour a side, so each centroid's cell is `x` or the next (`y` likewise).
+// 3 x 3 weight texels from cell (x, y) on, fetched once: where every bilinear weight a caller
+// needs blends texels of cell x or x + 1 a side (y likewise), each picks its four from them
+// (block_bilinear()) with its own cell and fraction, as weight_at() works them out: the same
+// texels and operations, so the same value. DPT's narrow lattices (lattice_masks()) and the
+// FBPB points' centroids (weight_block()) read weights this way.
 struct WeightBlock {
   int x, y;
   vec3 row0, row1, row2;
 };
-WeightBlock weight_block(int layer, int64_t x_fp, int64_t y_fp) {
+WeightBlock weight_block_from(int layer, int x, int y) {
   WeightBlock b;
-  int cell, c0, c1;
-  float f;
-  weight_axis(x_fp, P.weight_width, cell, c0, c1, f);
-  b.x = f < 0.5 ? cell - 1 : cell;
-  weight_axis(y_fp, P.weight_height, cell, c0, c1, f);
-  b.y = f < 0.5 ? cell - 1 : cell;
-  const ivec3 tx = clamp(ivec3(b.x) + ivec3(0, 1, 2), ivec3(0), ivec3(P.weight_width - 1));
-  const ivec3 ty = clamp(ivec3(b.y) + ivec3(0, 1, 2), ivec3(0), ivec3(P.weight_height - 1));
+  b.x = x;
+  b.y = y;
+  const ivec3 tx = clamp(ivec3(x) + ivec3(0, 1, 2), ivec3(0), ivec3(P.weight_width - 1));
+  const ivec3 ty = clamp(ivec3(y) + ivec3(0, 1, 2), ivec3(0), ivec3(P.weight_height - 1));
   b.row0 = vec3(weight_texel(layer, tx.x, ty.x), weight_texel(layer, tx.y, ty.x), weight_texel(layer, tx.z, ty.x));
   b.row1 = vec3(weight_texel(layer, tx.x, ty.y), weight_texel(layer, tx.y, ty.y), weight_texel(layer, tx.z, ty.y));
   b.row2 = vec3(weight_texel(layer, tx.x, ty.z), weight_texel(layer, tx.y, ty.z), weight_texel(layer, tx.z, ty.z));
   return b;
 }
 WeightBlock no_weight_block() { return WeightBlock(0, 0, vec3(0.0), vec3(0.0), vec3(0.0)); }
-// weight_at() from the block: the same cells, fractions and texels, so the same value.
+// The bilinear weight in cell (b.x + next_x, b.y + next_y) at fractions (fx, fy).
+float block_bilinear(WeightBlock b, bool next_x, bool next_y, float fx, float fy) {
+  const vec3 top = next_y ? b.row1 : b.row0, bottom = next_y ? b.row2 : b.row1;
+  const float w00 = next_x ? top.y : top.x, w10 = next_x ? top.z : top.y;
+  const float w01 = next_x ? bottom.y : bottom.x, w11 = next_x ? bottom.z : bottom.y;
+  return clamp01(mix(mix(w00, w10, fx), mix(w01, w11, fx), fy));
+}
+// The block around a prefiltered texel that holds every weight its FBPB points' feature
+// centroids read, where the composer has found them all within half a weight texel of the
+// footprint's centre (TVT_PART_FEATURE_WEIGHTS_WIDE clear): the centre's cell and its nearer
+// neighbour a side.
+WeightBlock weight_block(int layer, int64_t x_fp, int64_t y_fp) {
+  int cx, cy, c0, c1;
+  float fx, fy;
+  weight_axis(x_fp, P.weight_width, cx, c0, c1, fx);
+  weight_axis(y_fp, P.weight_height, cy, c0, c1, fy);
+  return weight_block_from(layer, fx < 0.5 ? cx - 1 : cx, fy < 0.5 ? cy - 1 : cy);
+}
+// weight_at() of a position in the block.
 float block_weight(WeightBlock b, int64_t x_fp, int64_t y_fp) {
   int cx, cy, c0, c1;
   float fx, fy;
   weight_axis(x_fp, P.weight_width, cx, c0, c1, fx);
   weight_axis(y_fp, P.weight_height, cy, c0, c1, fy);
-  const bool next_x = cx != b.x, next_y = cy != b.y;
-  const vec3 top = next_y ? b.row1 : b.row0, bottom = next_y ? b.row2 : b.row1;
-  const float w00 = next_x ? top.y : top.x, w10 = next_x ? top.z : top.y;
-  const float w01 = next_x ? bottom.y : bottom.x, w11 = next_x ? bottom.z : bottom.y;
-  return clamp01(mix(mix(w00, w10, fx), mix(w01, w11, fx), fy));
+  return block_bilinear(b, cx != b.x, cy != b.y, fx, fy);
 }
 
 // Resolutions are powers of two, so wrapping is a mask (also right for negative indices) and
@@ -296,10 +307,14 @@ vec4 sample_material(int n, float u, float v, float lod) {
   return mix(a, material_bilinear(n, l1, u, v), t);
 }
 
-// A's distribution within the footprint at (u, v): bilinear at the level of the trilinear pair
-// (l0, l1, t) nearest the LOD (reference_compositor.cpp spread): one level's fetches, not two.
+// The level of the trilinear pair (l0, l1, t) nearest the LOD: the one level the second-order
+// statistics are read at (reference_compositor.cpp nearest_level).
+int nearest_level(int l0, int l1, float t) { return t < 0.5 ? l0 : l1; }
+
+// A's distribution within the footprint at (u, v): bilinear at the level nearest the LOD
+// (reference_compositor.cpp spread): one level's fetches, not two.
 vec4 material_spread(int n, float u, float v, int l0, int l1, float t) {
-  return spread_bilinear(n, t < 0.5 ? l0 : l1, u, v);
+  return spread_bilinear(n, nearest_level(l0, l1, t), u, v);
 }
 
 // Hex-tiling at global material texel (gx + fx, gy + fy): reference_compositor.cpp hex_sample.
@@ -442,7 +457,7 @@ void feature_stats(int n, float u, float v, float lod, out vec2 df, out vec4 mom
   int l0, l1;
   float t;
   trilinear_levels(n, lod, l0, l1, t);
-  feature_bilinear(n, t < 0.5 ? l0 : l1, u, v, df, moment);
+  feature_bilinear(n, nearest_level(l0, l1, t), u, v, df, moment);
 }
 
 // The feature at global material texel (gx, gy): its mask d, soft f, the weight p at its
@@ -463,11 +478,8 @@ bool feature_at(int n, int64_t gx, int64_t gy, float plain, bool at_centroid, bo
   const int64_t cx_fp = ((2 * cx + 1) * period) >> shift;
   const int64_t cy_fp = ((2 * cy + 1) * period) >> shift;
   pw = plain;
-  if (d > 0.0 && at_centroid) {
-    // The part bit folds the block's path away where the composer has not proven it.
-    if (in_block && !part(TVT_PART_FEATURE_WEIGHTS_WIDE)) pw = block_weight(block, cx_fp, cy_fp);
-    else pw = weight_at(P.materials[n].weight_layer, cx_fp, cy_fp);
-  }
+  if (d > 0.0 && at_centroid)
+    pw = in_block ? block_weight(block, cx_fp, cy_fp) : weight_at(P.materials[n].weight_layer, cx_fp, cy_fp);
   const float r = tvt_rand01(tvt_hash_coord(cx, cy, P.materials[n].fbpb_salt));
   return d > 0.0 && pw > 0.0 && r <= pw * P.materials[n].cf;
 }
@@ -577,19 +589,12 @@ uint64_t lattice_masks(int n, int k, int64_t jx, int64_t jy, int nx, int ny, boo
     if (j == 0) cell_y = cell;
     if (cell != cell_y) row_next |= 1u << uint(j);
   }
-  const ivec3 tx = clamp(ivec3(cell_x) + ivec3(0, 1, 2), ivec3(0), ivec3(P.weight_width - 1));
-  const ivec3 ty = clamp(ivec3(cell_y) + ivec3(0, 1, 2), ivec3(0), ivec3(P.weight_height - 1));
-  const vec3 row0 = vec3(weight_texel(layer, tx.x, ty.x), weight_texel(layer, tx.y, ty.x), weight_texel(layer, tx.z, ty.x));
-  const vec3 row1 = vec3(weight_texel(layer, tx.x, ty.y), weight_texel(layer, tx.y, ty.y), weight_texel(layer, tx.z, ty.y));
-  const vec3 row2 = vec3(weight_texel(layer, tx.x, ty.z), weight_texel(layer, tx.y, ty.z), weight_texel(layer, tx.z, ty.z));
+  const WeightBlock block = weight_block_from(layer, cell_x, cell_y);
   for (int j = 0; j < ny; ++j) {
     const bool next_row = ((row_next >> uint(j)) & 1u) != 0u;
-    const vec3 top = next_row ? row1 : row0, bottom = next_row ? row2 : row1;
     for (int i = 0; i < nx; ++i) {
       const bool next = ((col_next >> uint(i)) & 1u) != 0u;
-      const float w00 = next ? top.y : top.x, w10 = next ? top.z : top.y;
-      const float w01 = next ? bottom.y : bottom.x, w11 = next ? bottom.z : bottom.y;
-      const float w = clamp01(mix(mix(w00, w10, col_f[i]), mix(w01, w11, col_f[i]), row_f[j]));
+      const float w = block_bilinear(block, next, next_row, col_f[i], row_f[j]);
       if (patch_mask(n, k, jx + int64_t(i), jy + int64_t(j), w)) bits |= uint64_t(1) << uint(j * 8 + i);
     }
   }
@@ -633,8 +638,8 @@ void patch_samples(int n, int k, int64_t x_fp, int64_t y_fp, float footprint, in
   patch_cell(n, k, x_fp, cx, fcx);
   patch_cell(n, k, y_fp, cy, fcy);
   const int64_t rcx = x_fp - cx * ps, rcy = y_fp - cy * ps;
-  int qx[4], qy[4];
-  float fx[4], fy[4];
+  int qx[3], qy[3];  // kk <= 3
+  float fx[3], fy[3];
   for (int i = 0; i < kk; ++i) {
     const float d = round(((float(i) + 0.5) / float(kk) - 0.5) * footprint * 256.0);
     const int64_t di = int64_t(d);
