@@ -720,15 +720,15 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
       double w = 0.0;
       if (fade > 0.0) {
         // Direct: the feature at the sample. Prefiltered: the mean w over k x k points of the
-        // footprint (tvt_feature_points), each with the texture over its own part of it (log2 k
-        // LODs finer), and their w-weighted colour (docs/composition.md, "FBPB features at points").
+        // footprint (tvt_feature_points), each with the texture over its own cell of it
+        // (tvt_feature_point_lods finer), and their w-weighted colour (docs/composition.md,
+        // "FBPB features at points").
         if (!prefiltered) {
           w = c.fbpb_exact(m, gx, gy, plain, with_dpt, non_feature, colour, visible);
         } else {
           const int k = gpu::tvt_feature_points(float(lod), float(c.stat(m, gpu::TVT_STATS_FEATURE_LOG2_SIZE)), with_dpt);
-          const int log2k = std::countr_zero(unsigned(k));
-          // Half the points' spacing, footprint / 2k, in fixed point; the points at odd multiples of it.
-          const int64_t half_step = std::llround(std::ldexp(footprint, gpu::TVT_FIXED_BITS - 1 - log2k));
+          const int lods = gpu::tvt_feature_point_lods(k);
+          const int64_t half_step = gpu::tvt_feature_point_half_step(std::llround(std::ldexp(footprint, gpu::TVT_FIXED_BITS)), k);
           glm::dvec4 weighted(0.0), points_colour(0.0);
           int shown = 0;
           for (int j = 0; j < k; ++j)
@@ -739,7 +739,7 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
               int64_t pgx, pgy;
               c.material_coord(m, px, pu, pgx);
               c.material_coord(m, py, pv, pgy);
-              glm::dvec4 pc = c.trilinear(m, pu, pv, lod - log2k);
+              glm::dvec4 pc = c.trilinear(m, pu, pv, lod - lods);
               bool shows = false;
               const double ground = clamp01(non_feature + ground_slope * (pc.a - colour.a));  // at its own A
               const double wi = c.fbpb_exact(m, pgx, pgy, plain, with_dpt, ground, pc, shows);

@@ -660,13 +660,11 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
       float w = 0.0;
       if (part(TVT_PART_FEATURES) && fade > 0.0) {
         // Direct: the feature at the sample. Prefiltered: the mean w over k x k points of the
-        // footprint, each with the texture over its own part of it (log2 k LODs finer), and their
-        // w-weighted colour (docs/composition.md, "FBPB features at points").
+        // footprint, each with the texture over its own cell of it (tvt_feature_point_lods finer),
+        // and their w-weighted colour (docs/composition.md, "FBPB features at points").
         const int kk = prefiltered ? tvt_feature_points(lod, material_stat(n, TVT_STATS_FEATURE_LOG2_SIZE), with_dpt) : 1;
-        const int log2k = findLSB(kk);
-        const float point_lod = lod - float(log2k);
-        // Half the points' spacing, footprint / 2k, in fixed point; the points at odd multiples of it.
-        const int64_t half_step = int64_t(round(ldexp(footprint, TVT_FIXED_BITS - 1 - log2k)));
+        const float point_lod = lod - float(tvt_feature_point_lods(kk));
+        const int64_t half_step = tvt_feature_point_half_step(int64_t(round(ldexp(footprint, TVT_FIXED_BITS))), kk);
         const bool near = footprint * float(P.materials[n].resolution) * 256.0 < float(P.materials[n].period_fp) * 1048576.0;
         const int64_t mask = int64_t(P.materials[n].resolution - 1);
         const int64_t rx = x_fp * int64_t(P.materials[n].resolution) - gx * P.materials[n].period_fp;

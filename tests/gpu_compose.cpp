@@ -200,7 +200,7 @@ TEST_F(GpuCompose, SupersampledMipsMatchReference) {
   expect_agreement(assets, o, {{0, 40, 60}, {1, 20, 30}, {3, 5, 7}}, "supersample 64 (capped)");
 }
 
-// The prefiltered strategy: every method, mip 0 (direct), mip 4 (the cobbles' 4 x 4 feature
+// The prefiltered strategy: every method, mip 0 (direct), mip 4 (the cobbles' 3 x 3 feature
 // points) and coarse mips where patches and features are far smaller than a texel, and the far
 // corner of V = 2^24 (64-bit paths).
 TEST_F(GpuCompose, PrefilteredMipsMatchReferenceForEveryMethod) {
@@ -328,6 +328,16 @@ TEST_F(GpuCompose, PrefilteredFeaturesHalfWayThroughLevel0sFadeMatchReference) {
   std::vector<PageId> pages;
   for (uint32_t mip = 0; mip <= 4; ++mip) pages.push_back(PageId{mip, 1u >> (mip / 2), 2u >> (mip / 2)});
   expect_agreement(a, options_for(Method::Fbpb, MipStrategy{1, true}), pages, "FBPB half-way through level 0's fade");
+}
+
+// Stones smaller than the footprint under FBPB+DPT: 4 x 4 feature points at mip 2 (a 4-texel
+// footprint), 3 x 3 at mip 3 (a third of a footprint apart, rounded in fixed point), and the
+// expectation past them, on the GPU as in the reference.
+TEST_F(GpuCompose, PrefilteredSmallFeaturesAtFourAndThreePointsMatchReference) {
+  const SceneAssets a = test::small_stone_scene(1.0f, 2.0f);  // points until LOD 3
+  std::vector<PageId> pages;
+  for (uint32_t mip = 2; mip <= 4; ++mip) pages.push_back(PageId{mip, 3u >> (mip / 2), 2u >> (mip / 2)});
+  expect_agreement(a, options_for(Method::FbpbDpt, MipStrategy{1, true}), pages, "small stones at points");
 }
 
 // A driver compiles at pipeline creation: no frame may be the first to need a variant.

@@ -791,40 +791,53 @@ TEST(Prefiltered, FeaturesAtPointsFollowLevel0HalfWayThroughTheFade) {
   EXPECT_GT(box_filter_texels(direct, pre, 1, 64, {7, 3}, {5, 1}), 20);
 }
 
-// Features smaller than the footprint under FBPB+DPT: 4 x 4 points (tvt_feature_points: the
-// material LOD above the log2 feature size less 1, and at least 2). At mip 2 they are the
-// sixteen level-0 texel centres with level 0's texture, so the prefiltered texel is again the
+// Features smaller than the footprint under FBPB+DPT (tvt_feature_points: the material LOD
+// above the log2 feature size less 1.5, and at least 2), on a footprint under 8 texels wide:
+// 4 x 4 points. At mip 2 they are the sixteen level-0 texel centres with level 0's texture, so the prefiltered texel is again the
 // box filter of level 0, every small stone's own decision included; with 2 x 2 points it would
 // not be. The DPT layer has no patches (p = 0), so the ground's value is 0 at level 0 and in
 // the footprint alike.
 TEST(Prefiltered, SmallFeaturesTakeFourByFourPointsExactAtMip2) {
-  auto a = test::make_synthetic_assets({k_base, {{0, 40, 200, 128}, 0.5f, Mode::FbpbDpt, 64}});
-  a.desc.materials[1].dpt.layers = {{16, 0, 1, 1, 0.5}};  // FBPB+DPT needs a layer
-  MetaTexture meta;
-  meta.resolution = 64;
-  meta.texels.resize(64 * 64);
-  ImageRGBA8 albedo(64, 64);
-  for (int y = 0; y < 64; ++y)
-    for (int x = 0; x < 64; ++x) {  // a stone of 5 x 5 texels in every 8 x 8 cell
-      const int dx = 4 - x % 8, dy = 4 - y % 8;
-      MetaTexel& t = meta.texels[size_t(y) * 64 + size_t(x)];
-      t.variation = 255;
-      const bool stone = std::abs(dx) <= 2 && std::abs(dy) <= 2;
-      if (stone) t.d = 1, t.f = 200, t.dx = int16_t(dx), t.dy = int16_t(dy);
-      uint8_t* c = albedo.at(x, y);
-      c[0] = 0, c[1] = stone ? 200 : 40, c[2] = stone ? 0 : 200, c[3] = 128;
-    }
-  meta.feature_count = 64;
-  a.materials->edit(1).albedo = build_mip_chain(albedo);
-  a.materials->edit(1).meta = std::move(meta);
-  a.desc.materials[1].has_fbpb = true;
-  a.desc.materials[1].fbpb.fade_lod_lo = 0.0;  // points until LOD 2
-  a.desc.materials[1].fbpb.fade_lod_hi = 1.0;
+  const SceneAssets a = test::small_stone_scene(0.0f, 1.0f);  // points until LOD 2
   const PackedScene direct = pack(a), pre = pack(a, prefiltered_options());
   EXPECT_EQ(gpu::tvt_feature_points(2.0f, float(0.5 * std::log2(25.0)), true), 4);
-  EXPECT_EQ(gpu::tvt_feature_points(1.0f, float(0.5 * std::log2(25.0)), true), 2);  // below 4 material texels
-  EXPECT_EQ(gpu::tvt_feature_points(2.0f, float(0.5 * std::log2(25.0)), false), 2);  // FBPB alone
   EXPECT_GT(box_filter_texels(direct, pre, 2, 48, {5, 3}, {3, 1}), 100);  // stone edges and stones of their own decision inside most footprints
+}
+
+// The same stones at mip 3, an 8-texel footprint: 3 x 3 points, each reading the texture two
+// LODs finer (level 1). They are no longer the box filter (a point stands for 8/3 texels), but
+// against it they are far closer than a point sample, and than 2 x 2 points over the same
+// stones (the same scene with the statistics block told the stones are large, so that k = 2):
+// two points 4 texels apart a side fall both on stones or both between them across an 8-texel
+// period, where three see its share. At mip 2 (a 4-texel footprint) three points a side would
+// read 3 of its 4 texel columns and miss one: hence 4 x 4 there (the test above).
+TEST(Prefiltered, SmallFeaturesTakeThreeByThreePointsAtMip3) {
+  const float small = float(0.5 * std::log2(25.0)), large = float(0.5 * std::log2(25.0 * 64));
+  EXPECT_EQ(gpu::tvt_feature_points(3.0f, small, true), 3);
+  EXPECT_EQ(gpu::tvt_feature_points(2.99f, small, true), 4);  // under 8 texels
+  EXPECT_EQ(gpu::tvt_feature_points(1.99f, small, true), 2);  // under 4 texels
+  EXPECT_EQ(gpu::tvt_feature_points(3.0f, small, false), 2);  // FBPB alone
+  EXPECT_EQ(gpu::tvt_feature_points(3.0f, large, true), 2);   // 3 < log2 40 - 1.5 = 3.82
+  EXPECT_EQ(gpu::tvt_feature_point_lods(2), 1);
+  EXPECT_EQ(gpu::tvt_feature_point_lods(3), 2);
+  EXPECT_EQ(gpu::tvt_feature_point_lods(4), 2);
+  // Mean absolute error over r, g, b at mip 3 against the box filter of level 0.
+  const auto error = [](const PackedScene& direct, const PackedScene& composed) {
+    double err = 0;
+    for (int64_t y = 0; y < 40; ++y)
+      for (int64_t x = 0; x < 40; ++x) {
+        const glm::dvec4 truth = ground_truth_texel(direct, 3, x * 5 + 3, y * 3 + 1);
+        const glm::dvec4 got = compose_texel_reference(composed, 3, x * 5 + 3, y * 3 + 1);
+        for (int c = 0; c < 3; ++c) err += std::abs(got[c] - truth[c]) / (3 * 40 * 40);
+      }
+    return err;
+  };
+  const SceneAssets three = test::small_stone_scene(1.0f, 2.0f), two = test::small_stone_scene(1.0f, 2.0f, 1);  // points until LOD 3
+  const PackedScene direct = pack(three);
+  const double e_direct = error(direct, direct), e3 = error(direct, pack(three, prefiltered_options()));
+  const double e2 = error(direct, pack(two, prefiltered_options()));  // level 0 does not read the statistics
+  EXPECT_LT(e3, 0.5 * e_direct) << e3 << " " << e_direct;  // 0.071 against 0.203
+  EXPECT_LT(e3, 0.5 * e2) << e3 << " " << e2;              // against 0.210
 }
 
 TEST(Mips, GroundTruthIsSupersamplingAtTheLevel0Rate) {

@@ -72,17 +72,20 @@ TEST(LazyNeeds, PrefilteredFbpbReadsTheMetaBlockAtEveryMipWhereLevel0HasFeatures
   for (uint32_t mip = 1; mip < 12; ++mip) EXPECT_EQ(MaterialCuller(faded).needs(PageId{mip, 0, 0}, 3u).meta_mask, 0u) << mip;
 }
 
-// Prefiltered FBPB features at k x k points read the texture log2 k LODs finer: k = 4 under
-// FBPB+DPT where the LOD is above the log2 feature size less 1 (tvt_feature_points), from the
-// material's statistics; 2 under FBPB alone.
+// Prefiltered FBPB features at k x k points read the texture tvt_feature_point_lods(k) finer:
+// k = 3 (two LODs finer) under FBPB+DPT where the LOD is above the log2 feature size less 1.5
+// (tvt_feature_points), from the material's statistics; 2 (one LOD finer) under FBPB alone.
 TEST(LazyNeeds, PrefilteredFeaturePointsReadOneOrTwoLodsFiner) {
   // R / T = 1/3: lod = mip - 1.585; mip 4 is lod 2.415, within the points (to lod 5).
-  const PackedScene small = scene(48.0, 1, Mode::FbpbDpt, true, 5);  // log2 5 - 1 = 1.32: k = 4
+  const PackedScene small = scene(48.0, 1, Mode::FbpbDpt, true, 5);  // log2 5 - 1.5 = 0.82: k = 3
   EXPECT_EQ(int(MaterialCuller(small).needs(PageId{4, 0, 0}, 3u).finest_level[1]), 0);
   const PackedScene small_fbpb = scene(48.0, 1, std::nullopt, true, 5);  // FBPB alone: k = 2
   EXPECT_EQ(int(MaterialCuller(small_fbpb).needs(PageId{4, 0, 0}, 3u).finest_level[1]), 1);
-  const PackedScene big = scene(48.0, 1, Mode::FbpbDpt, true, 11);  // log2 11 - 1 = 2.46: k = 2
+  // The whole 16 x 16 tile one feature: log2 16 - 1.5 = 2.5 above the LOD, k = 2.
+  const PackedScene big = scene(48.0, 1, Mode::FbpbDpt, true, 17);
   EXPECT_EQ(int(MaterialCuller(big).needs(PageId{4, 0, 0}, 3u).finest_level[1]), 1);
+  const PackedScene almost = scene(48.0, 1, Mode::FbpbDpt, true, 15);  // log2 15 - 1.5 = 2.41: k = 3
+  EXPECT_EQ(int(MaterialCuller(almost).needs(PageId{4, 0, 0}, 3u).finest_level[1]), 0);
   // Past the points (lod 6.4, the expectation alone): the footprint's own levels.
   for (const PackedScene* s : {&small, &small_fbpb, &big})
     EXPECT_EQ(int(MaterialCuller(*s).needs(PageId{8, 0, 0}, 3u).finest_level[1]), 4);

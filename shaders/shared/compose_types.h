@@ -141,17 +141,35 @@ TVT_CONST float TVT_PATCH_SAMPLES_HI = 8.0;
 // LODs past the end of the material's feature fade, then give way to their expectation over
 // the next LOD (docs/composition.md, "FBPB features at points").
 TVT_CONST float TVT_FEATURE_POINTS_LODS = 1.0;
-// k: 2, or under FBPB+DPT (`with_dpt`) 4 where half the footprint is wider than a quarter of
-// the typical feature (material LOD above the statistics block's log2 feature size less 1) and
-// the footprint spans 4 material texels or more: a point stands for its cell of the footprint,
-// so the cells must be small against a feature for the features' edges to fall at the right
-// share of them. How much a misplaced edge costs is the step in w across it: under FBPB+DPT the
-// ground takes DPT's patch value, 0 or 1 away from the patches' edges, against a feature's
-// min(cm max(p, f), 1); under FBPB alone it takes the plain weight p, a smaller step, and
-// 2 x 2 points keep the error within the budget at half the cost (docs/composition.md). Each
-// point reads the texture log2(k) LODs finer.
+// k: 2, or under FBPB+DPT (`with_dpt`) 3 where the footprint is wider than about a third of
+// the typical feature (material LOD above the statistics block's log2 feature size less
+// TVT_FEATURE_POINTS_FINER_LODS, 2^-1.5 = 0.35) and spans 4 material texels or more: a point
+// stands for its cell of the footprint, so the cells must be small against a feature for the
+// features' edges to fall at the right share of them. How much a misplaced edge costs is the
+// step in w across it: under FBPB+DPT the ground takes DPT's patch value, 0 or 1 away from
+// the patches' edges, against a feature's min(cm max(p, f), 1); under FBPB alone it takes the
+// plain weight p, a smaller step, and 2 x 2 points keep the error within the budget at half
+// the cost. 3 x 3 rather than 4 x 4: within 1 dB of it at 9/16 of the points, and the same
+// budget lets the finer grid start half a LOD earlier. Under 8 texels (LOD < 3) 4 x 4
+// instead: three points a side of a 4-texel footprint read 3 of its 4 texel columns, where
+// four are its texel centres (docs/composition.md, "FBPB features at points").
+TVT_CONST float TVT_FEATURE_POINTS_FINER_LODS = 1.5;
 TVT_FN int tvt_feature_points(float lod, float feature_log2_size, bool with_dpt) {
-  return (with_dpt && lod >= 2.0 && lod > feature_log2_size - 1.0) ? 4 : 2;
+  if (!(with_dpt && lod >= 2.0 && lod > feature_log2_size - TVT_FEATURE_POINTS_FINER_LODS)) return 2;
+  return lod < 3.0 ? 4 : 3;
+}
+
+// How many LODs finer than the footprint's the k x k points read the texture: the coarsest
+// whole step whose texels are no wider than a point's cell (footprint / k), 1 for k = 2 and
+// 2 for k = 3 and 4 (the material's levels are a whole LOD apart, so a whole step reads one level
+// wherever the footprint's LOD is whole).
+TVT_FN int tvt_feature_point_lods(int k) { return k > 2 ? 2 : 1; }
+
+// Half the points' spacing, footprint / 2k, in fixed point (footprint_fp: the footprint in
+// level-0 texels * 2^TVT_FIXED_BITS), rounded to the nearest; the points sit at its odd
+// multiples from the footprint's centre, one at the centre of each of the k x k cells.
+TVT_FN int64_t tvt_feature_point_half_step(int64_t footprint_fp, int k) {
+  return (footprint_fp + int64_t(k)) / int64_t(2 * k);
 }
 
 TVT_CONST int TVT_COMPOSE_GROUP = 16;  // compute workgroup edge (texels); lavapipe pays ~16 us per group

@@ -1,6 +1,7 @@
 #include "support/synthetic_scene.h"
 
 #include <algorithm>
+#include <cstdlib>
 
 namespace tvt::test {
 
@@ -54,6 +55,32 @@ SceneAssets big_feature_scene(float p) {
   a.desc.materials[1].has_fbpb = true;
   a.desc.materials[1].fbpb.fade_lod_lo = 0.0;
   a.desc.materials[1].fbpb.fade_lod_hi = 1.0;
+  return a;
+}
+
+SceneAssets small_stone_scene(float fade_lod_lo, float fade_lod_hi, uint32_t feature_count) {
+  SceneAssets a = make_synthetic_assets({{{200, 0, 0, 100}, 0.f, Mode::BlendMap}, {{0, 40, 200, 128}, 0.5f, Mode::FbpbDpt, 64}});
+  a.desc.materials[1].dpt.layers = {{16, 0, 1, 1, 0.5}};  // FBPB+DPT needs a layer
+  MetaTexture meta;
+  meta.resolution = 64;
+  meta.texels.resize(64 * 64);
+  ImageRGBA8 albedo(64, 64);
+  for (int y = 0; y < 64; ++y)
+    for (int x = 0; x < 64; ++x) {
+      const int dx = 4 - x % 8, dy = 4 - y % 8;
+      MetaTexel& t = meta.texels[size_t(y) * 64 + size_t(x)];
+      t.variation = 255;
+      const bool stone = std::abs(dx) <= 2 && std::abs(dy) <= 2;
+      if (stone) t.d = 1, t.f = 200, t.dx = int16_t(dx), t.dy = int16_t(dy);
+      uint8_t* c = albedo.at(x, y);
+      c[0] = 0, c[1] = stone ? 200 : 40, c[2] = stone ? 0 : 200, c[3] = 128;
+    }
+  meta.feature_count = feature_count;
+  a.materials->edit(1).albedo = build_mip_chain(albedo);
+  a.materials->edit(1).meta = std::move(meta);
+  a.desc.materials[1].has_fbpb = true;
+  a.desc.materials[1].fbpb.fade_lod_lo = fade_lod_lo;
+  a.desc.materials[1].fbpb.fade_lod_hi = fade_lod_hi;
   return a;
 }
 

@@ -30,6 +30,14 @@ MetaTexture square_feature_meta(int resolution, int cx, int cy, int side, uint8_
 // everywhere; features exact up to material LOD 1, their expectation from LOD 2.
 SceneAssets big_feature_scene(float p);
 
+// The same base under an FBPB+DPT material of weight 0.5, 64 texels a tile (material LOD =
+// mip), with a 5 x 5 stone (feature texels (0, 200, 0), ground (0, 40, 200)) in every 8 x 8
+// cell, each its own feature; its DPT layer has no patches (p = 0: the ground's value is 0 at
+// level 0 and in any footprint). The features fade out between fade_lod_lo and _hi (exact at
+// points one LOD further). feature_count is what the meta-texture reports (64 stones: the
+// statistics block's log2 feature size is log2 5; fewer tell it the stones are larger).
+SceneAssets small_stone_scene(float fade_lod_lo, float fade_lod_hi, uint32_t feature_count = 64);
+
 // Sets every weight-grid texel of `layer` to `value`.
 void set_weight(SceneAssets& assets, int layer, float value);
 
