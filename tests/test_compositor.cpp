@@ -725,28 +725,54 @@ TEST(Prefiltered, ChippedHolesAreInTheFeatureExpectation) {
 
 namespace {
 
-// Asserts that the prefiltered mip-`mip` texels (x * sx.first + sx.second, y * sy.first +
-// sy.second), x, y < n, are the box filter of level 0 (to 1e-9), and returns how many of them
-// a point sample gets wrong (their level-0 texels not all alike: an edge or a hole inside the
-// footprint); -1 at the first texel that is not.
+// A grid of n x n texels of a mip: (x * sx.first + sx.second, y * sy.first + sy.second).
+struct TexelGrid {
+  int64_t n;
+  std::pair<int64_t, int64_t> sx, sy;
+};
+
+// The box filter of `direct`'s level 0 and `composed`'s texel at each texel of the grid, in
+// order; `visit` returns false to stop.
+template <class Visit>
+void against_box_filter(const PackedScene& direct, const PackedScene& composed, uint32_t mip, const TexelGrid& g, Visit visit) {
+  for (int64_t y = 0; y < g.n; ++y)
+    for (int64_t x = 0; x < g.n; ++x) {
+      const int64_t tx = x * g.sx.first + g.sx.second, ty = y * g.sy.first + g.sy.second;
+      if (!visit(tx, ty, ground_truth_texel(direct, mip, tx, ty), compose_texel_reference(composed, mip, tx, ty))) return;
+    }
+}
+
+// Asserts that the prefiltered mip-`mip` texels of the grid are the box filter of level 0 (to
+// 1e-9), and returns how many of them a point sample gets wrong (their level-0 texels not all
+// alike: an edge or a hole inside the footprint); -1 at the first texel that is not.
 int box_filter_texels(const PackedScene& direct, const PackedScene& pre, uint32_t mip, int64_t n,
                       std::pair<int64_t, int64_t> sx, std::pair<int64_t, int64_t> sy) {
   int edges = 0;
-  for (int64_t y = 0; y < n; ++y)
-    for (int64_t x = 0; x < n; ++x) {
-      const int64_t tx = x * sx.first + sx.second, ty = y * sy.first + sy.second;
-      const glm::dvec4 truth = ground_truth_texel(direct, mip, tx, ty);
-      const glm::dvec4 got = compose_texel_reference(pre, mip, tx, ty);
-      for (int c = 0; c < 4; ++c)
-        if (!(std::abs(got[c] - truth[c]) <= 1e-9)) {
-          ADD_FAILURE() << "mip " << mip << " texel " << x << " " << y << " channel " << c << ": " << got[c]
-                        << " against the box filter's " << truth[c];
-          return -1;
-        }
-      const glm::dvec4 centre = compose_texel_reference(direct, mip, tx, ty);
-      edges += std::abs(centre.g - truth.g) > 0.05 ? 1 : 0;
-    }
+  against_box_filter(direct, pre, mip, {n, sx, sy}, [&](int64_t tx, int64_t ty, const glm::dvec4& truth, const glm::dvec4& got) {
+    for (int c = 0; c < 4; ++c)
+      if (!(std::abs(got[c] - truth[c]) <= 1e-9)) {
+        ADD_FAILURE() << "mip " << mip << " texel " << tx << " " << ty << " channel " << c << ": " << got[c]
+                      << " against the box filter's " << truth[c];
+        edges = -1;
+        return false;
+      }
+    const glm::dvec4 centre = compose_texel_reference(direct, mip, tx, ty);
+    edges += std::abs(centre.g - truth.g) > 0.05 ? 1 : 0;
+    return true;
+  });
   return edges;
+}
+
+// Mean absolute error over r, g, b of `composed` against the box filter of `direct`'s level 0
+// at mip `mip`, over the grid.
+double box_filter_error(const PackedScene& direct, const PackedScene& composed, uint32_t mip, int64_t n,
+                        std::pair<int64_t, int64_t> sx, std::pair<int64_t, int64_t> sy) {
+  double err = 0;
+  against_box_filter(direct, composed, mip, {n, sx, sy}, [&](int64_t, int64_t, const glm::dvec4& truth, const glm::dvec4& got) {
+    for (int c = 0; c < 3; ++c) err += std::abs(got[c] - truth[c]);
+    return true;
+  });
+  return err / double(3 * n * n);
 }
 
 }  // namespace
@@ -760,14 +786,7 @@ TEST(Prefiltered, FeaturesAtPointsAreTheBoxFilterOfLevel0AtMip1) {
   const SceneAssets a = test::big_feature_scene(0.5f);
   const PackedScene direct = pack(a), pre = pack(a, prefiltered_options());
   EXPECT_GT(box_filter_texels(direct, pre, 1, 64, {7, 3}, {5, 1}), 20);  // the box filter differs from a point sample on many of them
-  double err = 0;
-  for (int64_t y = 0; y < 32; ++y)
-    for (int64_t x = 0; x < 32; ++x) {
-      const glm::dvec4 truth = ground_truth_texel(direct, 2, x * 7 + 1, y * 3 + 2);
-      const glm::dvec4 got = compose_texel_reference(pre, 2, x * 7 + 1, y * 3 + 2);
-      for (int c = 0; c < 3; ++c) err += std::abs(got[c] - truth[c]) / (3 * 32 * 32);
-    }
-  EXPECT_LT(err, 0.01);
+  EXPECT_LT(box_filter_error(direct, pre, 2, 32, {7, 1}, {3, 2}), 0.01);
 }
 
 // The same with level 0 half-way through the FBPB fade (fade0 = 0.5): level 0 blends each
@@ -823,14 +842,7 @@ TEST(Prefiltered, SmallFeaturesTakeThreeByThreePointsAtMip3) {
   EXPECT_EQ(gpu::tvt_feature_point_lods(4), 2);
   // Mean absolute error over r, g, b at mip 3 against the box filter of level 0.
   const auto error = [](const PackedScene& direct, const PackedScene& composed) {
-    double err = 0;
-    for (int64_t y = 0; y < 40; ++y)
-      for (int64_t x = 0; x < 40; ++x) {
-        const glm::dvec4 truth = ground_truth_texel(direct, 3, x * 5 + 3, y * 3 + 1);
-        const glm::dvec4 got = compose_texel_reference(composed, 3, x * 5 + 3, y * 3 + 1);
-        for (int c = 0; c < 3; ++c) err += std::abs(got[c] - truth[c]) / (3 * 40 * 40);
-      }
-    return err;
+    return box_filter_error(direct, composed, 3, 40, {5, 3}, {3, 1});
   };
   const SceneAssets three = test::small_stone_scene(1.0f, 2.0f), two = test::small_stone_scene(1.0f, 2.0f, 1);  // points until LOD 3
   const PackedScene direct = pack(three);
