@@ -106,9 +106,10 @@ MaterialNeeds MaterialCuller::needs(const PageId& page, uint32_t mask) const {
     // Prefiltered, it reads it (the features at points, then their statistics chain) at every
     // mip where level 0 has features (fade0 > 0: the level-0 LOD below the fade's end), and the
     // features at points read the texture tvt_feature_point_lods(k) finer than the footprint, k
-    // from tvt_feature_points() (3 only under FBPB+DPT) and the feature size in the material's
-    // statistics block: the material is loaded here (the upload of what this returns loads it
-    // anyway); one that fails to load is taken at k = 3, and its upload reports the error.
+    // from tvt_feature_points() (above 2 only under FBPB+DPT) and the feature size in the
+    // material's statistics block: the material is loaded here (the upload of what this returns
+    // loads it anyway); one that fails to load is taken at k > 2, and its upload reports the
+    // error.
     const bool fbpb_meta =
         n > 0 && (m.mode == gpu::TVT_MODE_FBPB || m.mode == gpu::TVT_MODE_FBPB_DPT) && m.meta_offset != gpu::TVT_NO_META;
     const bool prefiltered = params_.prefiltered != 0 && page.mip > 0;
@@ -118,7 +119,7 @@ MaterialNeeds MaterialCuller::needs(const PageId& page, uint32_t mask) const {
     double finer = points ? double(gpu::tvt_feature_point_lods(2)) : 0.0;
     const bool with_dpt = m.mode == gpu::TVT_MODE_FBPB_DPT;
     const float reach = float(lod + k_margin);
-    // The feature size decides only where some size would give k = 3 (-inf: every size).
+    // The feature size decides only where some size would give k > 2 (-inf: every size).
     if (points && gpu::tvt_feature_points(reach, -INFINITY, with_dpt) > 2) {
       const bool loaded = bool(scene_.load(bit));
       if (!loaded || gpu::tvt_feature_points(reach, scene_.stat(size_t(n), gpu::TVT_STATS_FEATURE_LOG2_SIZE), with_dpt) > 2)
