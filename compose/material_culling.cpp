@@ -116,15 +116,13 @@ MaterialNeeds MaterialCuller::needs(const PageId& page, uint32_t mask) const {
     const double level0_lod = std::log2(double(m.resolution) * 256.0 / double(m.period_fp));
     const bool level0_features = prefiltered && level0_lod - k_margin < fbpb_fade_end(m);
     const bool points = fbpb_meta && level0_features && lod - k_margin < fbpb_prefiltered_end(m);
-    double finer = points ? double(gpu::tvt_feature_point_lods(2)) : 0.0;
     const bool with_dpt = m.mode == gpu::TVT_MODE_FBPB_DPT;
     const float reach = float(lod + k_margin);
     // The feature size decides only where some size would give k > 2 (-inf: every size).
-    if (points && gpu::tvt_feature_points(reach, -INFINITY, with_dpt) > 2) {
-      const bool loaded = bool(scene_.load(bit));
-      if (!loaded || gpu::tvt_feature_points(reach, scene_.stat(size_t(n), gpu::TVT_STATS_FEATURE_LOG2_SIZE), with_dpt) > 2)
-        finer = double(gpu::tvt_feature_point_lods(3));
-    }
+    int k = gpu::tvt_feature_points(reach, -INFINITY, with_dpt);
+    if (points && k > 2 && scene_.load(bit))
+      k = gpu::tvt_feature_points(reach, scene_.stat(size_t(n), gpu::TVT_STATS_FEATURE_LOG2_SIZE), with_dpt);
+    const double finer = points ? double(gpu::tvt_feature_point_lods(k)) : 0.0;
     const double level = std::clamp(lod - finer - k_margin, 0.0, double(std::max(m.mip_count - 1, 0)));
     out.finest_level[size_t(n)] = uint8_t(std::floor(level));
     if (fbpb_meta && (prefiltered ? level0_features : lod - k_margin < fbpb_fade_end(m))) out.meta_mask |= bit;
