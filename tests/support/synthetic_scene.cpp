@@ -40,12 +40,15 @@ SceneAssets make_synthetic_assets(const std::vector<SyntheticMaterial>& material
   return a;
 }
 
-SceneAssets big_feature_scene(float p) {
-  SceneAssets a = make_synthetic_assets({{{200, 0, 0, 100}, 0.f, Mode::BlendMap}, {{0, 40, 200, 128}, p, Mode::Fbpb, 64}});
-  MetaTexture meta = square_feature_meta(64, 32, 32, 32);
-  ImageRGBA8 albedo(64, 64);
-  for (int y = 0; y < 64; ++y)
-    for (int x = 0; x < 64; ++x) {
+namespace {
+
+// Material 1 takes `meta` as its FBPB features, with an albedo that shows them: feature texels
+// (0, 200, 0), ground (0, 40, 200), A = 128; its features fade out between lo and hi.
+void set_features(SceneAssets& a, MetaTexture meta, float fade_lod_lo, float fade_lod_hi) {
+  const int r = meta.resolution;
+  ImageRGBA8 albedo(r, r);
+  for (int y = 0; y < r; ++y)
+    for (int x = 0; x < r; ++x) {
       uint8_t* t = albedo.at(x, y);
       const bool feature = meta.at(x, y).d != 0;
       t[0] = 0, t[1] = feature ? 200 : 40, t[2] = feature ? 0 : 200, t[3] = 128;
@@ -53,8 +56,15 @@ SceneAssets big_feature_scene(float p) {
   a.materials->edit(1).albedo = build_mip_chain(albedo);
   a.materials->edit(1).meta = std::move(meta);
   a.desc.materials[1].has_fbpb = true;
-  a.desc.materials[1].fbpb.fade_lod_lo = 0.0;
-  a.desc.materials[1].fbpb.fade_lod_hi = 1.0;
+  a.desc.materials[1].fbpb.fade_lod_lo = fade_lod_lo;
+  a.desc.materials[1].fbpb.fade_lod_hi = fade_lod_hi;
+}
+
+}  // namespace
+
+SceneAssets big_feature_scene(float p) {
+  SceneAssets a = make_synthetic_assets({{{200, 0, 0, 100}, 0.f, Mode::BlendMap}, {{0, 40, 200, 128}, p, Mode::Fbpb, 64}});
+  set_features(a, square_feature_meta(64, 32, 32, 32), 0.0f, 1.0f);
   return a;
 }
 
@@ -64,23 +74,15 @@ SceneAssets small_stone_scene(float fade_lod_lo, float fade_lod_hi, uint32_t fea
   MetaTexture meta;
   meta.resolution = 64;
   meta.texels.resize(64 * 64);
-  ImageRGBA8 albedo(64, 64);
   for (int y = 0; y < 64; ++y)
     for (int x = 0; x < 64; ++x) {
       const int dx = 4 - x % 8, dy = 4 - y % 8;
       MetaTexel& t = meta.texels[size_t(y) * 64 + size_t(x)];
       t.variation = 255;
-      const bool stone = std::abs(dx) <= 2 && std::abs(dy) <= 2;
-      if (stone) t.d = 1, t.f = 200, t.dx = int16_t(dx), t.dy = int16_t(dy);
-      uint8_t* c = albedo.at(x, y);
-      c[0] = 0, c[1] = stone ? 200 : 40, c[2] = stone ? 0 : 200, c[3] = 128;
+      if (std::abs(dx) <= 2 && std::abs(dy) <= 2) t.d = 1, t.f = 200, t.dx = int16_t(dx), t.dy = int16_t(dy);
     }
   meta.feature_count = feature_count;
-  a.materials->edit(1).albedo = build_mip_chain(albedo);
-  a.materials->edit(1).meta = std::move(meta);
-  a.desc.materials[1].has_fbpb = true;
-  a.desc.materials[1].fbpb.fade_lod_lo = fade_lod_lo;
-  a.desc.materials[1].fbpb.fade_lod_hi = fade_lod_hi;
+  set_features(a, std::move(meta), fade_lod_lo, fade_lod_hi);
   return a;
 }
 
