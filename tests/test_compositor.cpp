@@ -2,6 +2,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
+#include <vector>
 
 #include "compose/material_source.h"
 #include "compose/reference_compositor.h"
@@ -850,6 +852,22 @@ TEST(Prefiltered, SmallFeaturesTakeThreeByThreePointsAtMip3) {
   const double e2 = error(direct, pack(two, prefiltered_options()));  // level 0 does not read the statistics
   EXPECT_LT(e3, 0.5 * e_direct) << e3 << " " << e_direct;  // 0.071 against 0.203
   EXPECT_LT(e3, 0.5 * e2) << e3 << " " << e2;              // against 0.210
+}
+
+// The points' half spacing is footprint / 2k rounded to the nearest fixed-point unit, worked out
+// without a division by a variable (k = 3: a halving, then a division by the constant 3), for
+// every k tvt_feature_points() returns, footprints from 1/256 of a texel to 2^40 texels.
+TEST(Prefiltered, FeaturePointHalfStepIsTheRoundedQuotient) {
+  std::vector<int64_t> footprints;
+  for (int64_t f = 1; f < 5000; ++f) footprints.push_back(f);
+  for (int e = 12; e < 48; ++e)
+    for (int64_t d = -7; d <= 7; ++d) footprints.push_back((int64_t(1) << e) + d);
+  for (const int k : {2, 3, 4})
+    for (const int64_t f : footprints) {
+      const int64_t h = gpu::tvt_feature_point_half_step(f, k);
+      ASSERT_EQ(h, (f + k) / (2 * k)) << "footprint " << f << " k " << k;
+      ASSERT_LE(std::abs(2 * k * h - f), k) << "footprint " << f << " k " << k;  // nearest
+    }
 }
 
 TEST(Mips, GroundTruthIsSupersamplingAtTheLevel0Rate) {

@@ -167,9 +167,13 @@ TVT_FN int tvt_feature_point_lods(int k) { return k > 2 ? 2 : 1; }
 
 // Half the points' spacing, footprint / 2k, in fixed point (footprint_fp: the footprint in
 // level-0 texels * 2^TVT_FIXED_BITS), rounded to the nearest; the points sit at its odd
-// multiples from the footprint's centre, one at the centre of each of the k x k cells.
+// multiples from the footprint's centre, one at the centre of each of the k x k cells. For the
+// k that tvt_feature_points() returns the quotient needs no division by a variable (a software
+// loop for 64-bit integers on GPUs): a shift for 2k = 4 and 8, a halving and a division by the
+// constant 3 (a multiply-high) for 2k = 6; floor(floor(x / 2) / 3) = floor(x / 6) for x >= 0.
 TVT_FN int64_t tvt_feature_point_half_step(int64_t footprint_fp, int k) {
-  return (footprint_fp + int64_t(k)) / int64_t(2 * k);
+  const int64_t num = footprint_fp + int64_t(k);
+  return k == 3 ? (num >> 1) / int64_t(3) : num >> (k == 2 ? 2 : 3);
 }
 
 TVT_CONST int TVT_COMPOSE_GROUP = 16;  // compute workgroup edge (texels); lavapipe pays ~16 us per group
