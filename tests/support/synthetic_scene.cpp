@@ -1,7 +1,10 @@
 #include "support/synthetic_scene.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cstdlib>
+#include <utility>
 
 namespace tvt::test {
 
@@ -63,13 +66,13 @@ void set_features(SceneAssets& a, MetaTexture meta, float fade_lod_lo, float fad
 }  // namespace
 
 SceneAssets big_feature_scene(float p) {
-  SceneAssets a = make_synthetic_assets({{{200, 0, 0, 100}, 0.f, Mode::BlendMap}, {{0, 40, 200, 128}, p, Mode::Fbpb, 64}});
+  SceneAssets a = make_synthetic_assets({k_base, {{0, 40, 200, 128}, p, Mode::Fbpb, 64}});
   set_features(a, square_feature_meta(64, 32, 32, 32), 0.0f, 1.0f);
   return a;
 }
 
 SceneAssets small_stone_scene(float fade_lod_lo, float fade_lod_hi, uint32_t feature_count) {
-  SceneAssets a = make_synthetic_assets({{{200, 0, 0, 100}, 0.f, Mode::BlendMap}, {{0, 40, 200, 128}, 0.5f, Mode::FbpbDpt, 64}});
+  SceneAssets a = make_synthetic_assets({k_base, {{0, 40, 200, 128}, 0.5f, Mode::FbpbDpt, 64}});
   a.desc.materials[1].dpt.layers = {{16, 0, 1, 1, 0.5}};  // FBPB+DPT needs a layer
   MetaTexture meta;
   meta.resolution = 64;
@@ -84,6 +87,12 @@ SceneAssets small_stone_scene(float fade_lod_lo, float fade_lod_hi, uint32_t fea
   meta.feature_count = feature_count;
   set_features(a, std::move(meta), fade_lod_lo, fade_lod_hi);
   return a;
+}
+
+PackedScene pack(const SceneAssets& assets, ComposeOptions options) {
+  auto p = pack_scene(assets, options);
+  EXPECT_TRUE(p.ok()) << (p.ok() ? "" : p.error().message);
+  return std::move(p).value();
 }
 
 void set_weight(SceneAssets& a, int layer, float value) {

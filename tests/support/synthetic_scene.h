@@ -17,6 +17,10 @@ struct SyntheticMaterial {
   int resolution = 16;
 };
 
+// The base of the equation tests' scenes: a blend map of colour (200, 0, 0) and height 100,
+// remainder weight.
+inline const SyntheticMaterial k_base{{200, 0, 0, 100}, 0.f, Mode::BlendMap};
+
 // V = 2^log2_vt, P = 16, B = 2, a 4x4 weight grid; material 0 is the base with remainder weight.
 SceneAssets make_synthetic_assets(const std::vector<SyntheticMaterial>& materials, uint32_t log2_vt = 10);
 
@@ -37,6 +41,9 @@ SceneAssets big_feature_scene(float p);
 // points one LOD further). feature_count is what the meta-texture reports (64 stones: the
 // statistics block's log2 feature size is log2 5; fewer tell it the stones are larger).
 SceneAssets small_stone_scene(float fade_lod_lo, float fade_lod_hi, uint32_t feature_count = 64);
+
+// pack_scene(), failing the test where it returns an error.
+PackedScene pack(const SceneAssets& assets, ComposeOptions options = {});
 
 // Sets every weight-grid texel of `layer` to `value`.
 void set_weight(SceneAssets& assets, int layer, float value);
