@@ -105,23 +105,23 @@ MaterialNeeds MaterialCuller::needs(const PageId& page, uint32_t mask) const {
     // Direct, the FBPB branch reads the meta-texture while fade = 1 - ramp(lod, lo, hi) > 0.
     // Prefiltered, it reads it (the features at points, then their statistics chain) at every
     // mip where level 0 has features (fade0 > 0: the level-0 LOD below the fade's end), and the
-    // features at points read the texture tvt_feature_point_lods(k) finer than the footprint, k
-    // from tvt_feature_points() (above 2 only under FBPB+DPT) and the feature size in the
-    // material's statistics block: the material is loaded here (the upload of what this returns
-    // loads it anyway); one that fails to load is taken at k > 2, and its upload reports the
-    // error.
+    // features at points (tvt_feature_points_hold) read the texture tvt_feature_point_lods(k)
+    // finer than the footprint, k from tvt_feature_points() (above 2 only under FBPB+DPT). Both
+    // take the feature size in the material's statistics block: the material is loaded here
+    // (the upload of what this returns loads it anyway); one that fails to load is taken at
+    // points with k > 2, and its upload reports the error.
     const bool fbpb_meta =
         n > 0 && (m.mode == gpu::TVT_MODE_FBPB || m.mode == gpu::TVT_MODE_FBPB_DPT) && m.meta_offset != gpu::TVT_NO_META;
     const bool prefiltered = params_.prefiltered != 0 && page.mip > 0;
     const double level0_lod = std::log2(double(m.resolution) * 256.0 / double(m.period_fp));
     const bool level0_features = prefiltered && level0_lod - k_margin < fbpb_fade_end(m);
-    const bool points = fbpb_meta && level0_features && lod - k_margin < fbpb_prefiltered_end(m);
+    const bool loaded = fbpb_meta && level0_features && scene_.load(bit);
+    const float size = loaded ? scene_.stat(size_t(n), gpu::TVT_STATS_FEATURE_LOG2_SIZE) : INFINITY;
+    const bool points = fbpb_meta && level0_features && gpu::tvt_feature_points_hold(float(lod - k_margin), size);
     const bool with_dpt = m.mode == gpu::TVT_MODE_FBPB_DPT;
-    const float reach = float(lod + k_margin);
-    // The feature size decides only where some size would give k > 2 (-inf: every size).
-    int k = gpu::tvt_feature_points(reach, -INFINITY, with_dpt);
-    if (points && k > 2 && scene_.load(bit))
-      k = gpu::tvt_feature_points(reach, scene_.stat(size_t(n), gpu::TVT_STATS_FEATURE_LOG2_SIZE), with_dpt);
+    // At the finest level the reach can take: k from the LOD a margin above (tvt_feature_points
+    // grows with the LOD), and the size unknown taken as every size (-inf).
+    const int k = gpu::tvt_feature_points(float(lod + k_margin), loaded ? size : -INFINITY, with_dpt);
     const double finer = points ? double(gpu::tvt_feature_point_lods(k)) : 0.0;
     const double level = std::clamp(lod - finer - k_margin, 0.0, double(std::max(m.mip_count - 1, 0)));
     out.finest_level[size_t(n)] = uint8_t(std::floor(level));

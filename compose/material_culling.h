@@ -22,13 +22,6 @@ namespace tvt {
 inline double fbpb_fade_end(const gpu::TvtMaterial& m) {
   return m.fbpb_fade_hi > m.fbpb_fade_lo ? double(m.fbpb_fade_hi) : double(m.fbpb_fade_lo);
 }
-// A prefiltered mip keeps the features exact at points of the footprint TVT_FEATURE_POINTS_LODS
-// past fbpb_fade_end, then gives way to their expectation over the next LOD, which ends at
-// fbpb_prefiltered_end (compose_sample.glsl computes the same). The meta-texture is read below
-// that end, and the points read the texture one LOD finer than the footprint.
-inline double fbpb_points_end(const gpu::TvtMaterial& m) { return fbpb_fade_end(m) + double(gpu::TVT_FEATURE_POINTS_LODS); }
-inline double fbpb_prefiltered_end(const gpu::TvtMaterial& m) { return fbpb_points_end(m) + 1.0; }
-
 // What composing a page reads of each material (composer/material_uploader.h uploads just this).
 struct MaterialNeeds {
   uint32_t mask = 0;       // bit n: material n and its weight layer (the culling mask)

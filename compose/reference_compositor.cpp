@@ -638,11 +638,14 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
       const double a_var = prefiltered && with_dpt ? spread_variance(a_spread) : 0.0;
       const double ground_slope = a_var > 1e-5 ? dpt_dev / a_var : 0.0;
       // Prefiltered: features stay exact (coherent per feature), at points of the footprint,
-      // until one LOD past the fade's end, then give way to their expectation over one LOD.
-      // Level 0's own feature fade (what the truth holds; 1 for the default scenes).
+      // while it is about a feature or less, then take their expectation: a switch, decided in
+      // float from the LOD as the shader has it (a prefiltered footprint is a power of two, 2^k,
+      // where material_lod() there is float(k) + lod_bias). Level 0's own feature fade (what the
+      // truth holds; 1 for the default scenes).
       const double fade0 = prefiltered ? 1.0 - ramp(c.material_lod(m, 1.0), m.fbpb_fade_lo, m.fbpb_fade_hi) : 1.0;
-      const double fade = prefiltered ? (fade0 > 0.0 ? 1.0 - ramp(lod, fbpb_points_end(m), fbpb_prefiltered_end(m)) : 0.0)
-                                       : 1.0 - ramp(lod, m.fbpb_fade_lo, m.fbpb_fade_hi);
+      const double fade =
+          prefiltered ? (fade0 > 0.0 && gpu::tvt_feature_points_hold(float(std::log2(footprint)) + m.lod_bias, float(c.stat(m, gpu::TVT_STATS_FEATURE_LOG2_SIZE))) ? 1.0 : 0.0)
+                      : 1.0 - ramp(lod, m.fbpb_fade_lo, m.fbpb_fade_hi);
       double fallback = 0.0;
       if (with_dpt) {
         fallback = non_feature;
@@ -714,7 +717,7 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
                               colour.a);
         // E[b colour] - E[b] mean: feature texels (their own mean colour) take w_F, the others
         // w_N, so the shift is (w_F - w_N) times the moment D (feature colour mean - mean).
-        feature_shift = (1.0 - fade) * fade0 * (w_feature - w_ground);
+        feature_shift = fade0 * (w_feature - w_ground);  // fade is 0 here
         feature_moment = local.moment;
       }
       double w = 0.0;
@@ -750,13 +753,12 @@ glm::dvec4 compose_sample(const PackedScene& scene, int64_t x_fp, int64_t y_fp, 
             }
           visible = 2 * shown >= k * k;  // half the points
           // The points' mean, faded as level 0 fades them (its plain share in each point's own
-          // colour, darkened where chipped), and the colour that makes the blend below that mean
-          // plus the expectation's share.
+          // colour, darkened where chipped), and their w-weighted colour: mix(result, colour, b)
+          // is then that mean of the points' blends.
           const double per_point = 1.0 / double(k * k);
           w = fade0 * per_point * w + (1.0 - fade0) * plain_fallback;
           weighted = per_point * (fade0 * weighted + (1.0 - fade0) * plain_fallback * points_colour);
-          const double b_mix = fade * w + (1.0 - fade) * fallback;
-          if (b_mix > 0.0) colour = (fade * weighted + (1.0 - fade) * fallback * colour) / b_mix;
+          if (w > 0.0) colour = weighted / w;  // fade is 1 here: a switch, not a ramp
         }
       }
       b = fade * w + (1.0 - fade) * fallback;

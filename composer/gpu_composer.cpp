@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 
 #include "shaders/shared/compose_bindings.h"
 #include "shaders/shared/compose_coord.h"
@@ -92,7 +93,7 @@ namespace {
 // prefiltered_parts() and sample_pairs(): the parts of mip `mip`, and in `pairs` every
 // (material, layer) pair whose samples it reaches, in material and layer order, where they are at
 // most TVT_SAMPLE_PAIRS_MAX with narrow lattices (else 0).
-uint32_t prefiltered_reach(const gpu::TvtComposeParams& p, uint32_t mip, uint32_t* pairs) {
+uint32_t prefiltered_reach(const gpu::TvtComposeParams& p, uint32_t mip, const FeatureSizes& sizes, uint32_t* pairs) {
   *pairs = 0;
   bool more = false;  // a sampled layer the pairs do not take
   // compose.comp's footprint: 2^mip level-0 texels over at most 2^mip sub-samples a side.
@@ -137,22 +138,23 @@ uint32_t prefiltered_reach(const gpu::TvtComposeParams& p, uint32_t mip, uint32_
         }
       }
     }
-    if (m.mode == gpu::TVT_MODE_FBPB || m.mode == gpu::TVT_MODE_FBPB_DPT) {  // compose_sample()'s FBPB branch
-      // The LOD fade of the features: fade = 1 - ramp(lod, end + TVT_FEATURE_POINTS_LODS, that + 1),
-      // fade0 = 1 - ramp(LOD at one texel, lo, hi); material_lod() is exactly k + lod_bias at a
-      // footprint of 2^k.
-      const float fade_end = std::max(m.fbpb_fade_hi, m.fbpb_fade_lo) + gpu::TVT_FEATURE_POINTS_LODS,
-                  fade_top = fade_end + 1.0f;
+    if ((m.mode == gpu::TVT_MODE_FBPB || m.mode == gpu::TVT_MODE_FBPB_DPT) && !std::isnan(sizes[size_t(n)])) {
+      // compose_sample()'s FBPB branch: the features at points where tvt_feature_points_hold(),
+      // else in expectation, both only where level 0 has them (fade0 = 1 - ramp(LOD at one
+      // texel, lo, hi) > 0). material_lod() is exactly k + lod_bias at a footprint of 2^k, and
+      // both sides evaluate the switch in the same float arithmetic.
       const bool fade0_positive = ramp_is_below_one(m.lod_bias, m.fbpb_fade_lo, m.fbpb_fade_hi);
+      const float size = sizes[size_t(n)];
       bool features = false;
       if (exact_ratio) {
-        const float lod = float(e - 1) + m.lod_bias;
-        if (ramp_is_below_one(lod, fade_end, fade_top) && fade0_positive) features = true;  // fade > 0
-        if (ramp_is_positive(lod, fade_end, fade_top) && fade0_positive) parts |= gpu::TVT_PART_FEATURE_EXPECT;
+        const bool points = gpu::tvt_feature_points_hold(float(e - 1) + m.lod_bias, size);
+        if (fade0_positive) features = points;
+        if (fade0_positive && !points) parts |= gpu::TVT_PART_FEATURE_EXPECT;
       } else {
         const double lod = std::log2(footprint) + double(m.lod_bias), slack = 1e-3;  // a float log2
-        if (lod - slack < double(fade_top) && fade0_positive) features = true;
-        if (lod + slack > double(fade_end) && fade0_positive) parts |= gpu::TVT_PART_FEATURE_EXPECT;
+        const double edge = double(size) + double(gpu::TVT_FEATURE_POINTS_REL);
+        if (lod - slack < edge && fade0_positive) features = true;
+        if (lod + slack >= edge && fade0_positive) parts |= gpu::TVT_PART_FEATURE_EXPECT;
       }
       if (features) {
         parts |= gpu::TVT_PART_FEATURES;
@@ -165,14 +167,25 @@ uint32_t prefiltered_reach(const gpu::TvtComposeParams& p, uint32_t mip, uint32_
 }
 }  // namespace
 
-uint32_t prefiltered_parts(const gpu::TvtComposeParams& p, uint32_t mip) {
+FeatureSizes loaded_feature_sizes(const PackedScene& scene) {
+  FeatureSizes sizes;
+  sizes.fill(std::numeric_limits<float>::quiet_NaN());
+  const uint32_t loaded = scene.loaded_mask();
+  for (int n = 0; n < scene.params.material_count && n < gpu::TVT_MAX_MATERIALS; ++n)
+    if (loaded >> n & 1u) sizes[size_t(n)] = scene.stat(size_t(n), gpu::TVT_STATS_FEATURE_LOG2_SIZE);
+  return sizes;
+}
+
+uint32_t prefiltered_parts(const gpu::TvtComposeParams& p, uint32_t mip, const FeatureSizes& sizes) {
   uint32_t pairs = 0;
-  return prefiltered_reach(p, mip, &pairs);
+  return prefiltered_reach(p, mip, sizes, &pairs);
 }
 
 uint32_t sample_pairs(const gpu::TvtComposeParams& p, uint32_t mip) {
+  FeatureSizes none;  // the pairs are DPT's alone
+  none.fill(std::numeric_limits<float>::quiet_NaN());
   uint32_t pairs = 0;
-  prefiltered_reach(p, mip, &pairs);
+  prefiltered_reach(p, mip, none, &pairs);
   return pairs;
 }
 
@@ -202,6 +215,10 @@ Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, c
   c->slot_texels_ = uint32_t(scene.params.page_texels + 2 * scene.params.border_texels);
   c->params_ = scene.params;
   c->culler_ = std::make_unique<MaterialCuller>(scene);
+  c->scene_.params = scene.params;
+  c->scene_.texel_words = scene.texel_words;
+  c->scene_.meta_words = scene.meta_words;
+  c->scene_.cache_ = scene.cache_;
 
   c->params_buffer_ = context.create_buffer(sizeof(gpu::TvtComposeParams), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
   if (!c->params_buffer_) return context.status().error();
@@ -272,10 +289,24 @@ void GpuComposer::derive_specialisation() {
     spec_hex_ = spec_hex_ || params_.materials[n].hex_edge > 0;
   }
   spec_small_ = small_coordinates(params_);
+  // Where a prefiltered mip takes an FBPB material's features at points and where in
+  // expectation follows from the feature size in its statistics (tvt_feature_points_hold):
+  // loaded here, on the host, so that every variant is made now, not by the page that first
+  // reads the material. One that fails to load is left out: a page that reads it fails its
+  // upload, so it is never dispatched (a load's error is kept, not retried).
+  if (params_.prefiltered != 0) {
+    uint32_t fbpb = 0;
+    for (int n = 1; n < params_.material_count && n < gpu::TVT_MAX_MATERIALS; ++n)
+      if (params_.materials[n].mode == gpu::TVT_MODE_FBPB || params_.materials[n].mode == gpu::TVT_MODE_FBPB_DPT)
+        fbpb |= 1u << n;
+    for (uint32_t rest = fbpb & ~scene_.loaded_mask(); rest != 0; rest &= rest - 1)
+      (void)scene_.load(rest & (~rest + 1));
+  }
+  const FeatureSizes sizes = loaded_feature_sizes(scene_);
   for (uint32_t mip = 0; mip < parts_by_mip_.size(); ++mip) {
     // prefiltered_parts() and sample_pairs() from one pass over the layers; the layers the
     // pairs name are sampled before the material loop, not in it.
-    const uint32_t parts = prefiltered_reach(params_, mip, &pairs_by_mip_[mip]);
+    const uint32_t parts = prefiltered_reach(params_, mip, sizes, &pairs_by_mip_[mip]);
     parts_by_mip_[mip] = parts & (pairs_by_mip_[mip] ? ~gpu::TVT_PART_DPT_SAMPLES : ~0u);
   }
   direct_parts_ = direct_parts(params_);

@@ -5,7 +5,9 @@
 // Materials are uploaded lazily by default (composer/material_uploader.h): record() uploads what
 // its pages read for the first time (weight layer, texture levels, meta-texture; exactly as
 // compose/material_culling.h predicts) just before their dispatch. Output is byte-identical to
-// uploading everything at create().
+// uploading everything at create(). Under the prefiltered strategy create() and set_params()
+// load the FBPB materials on the host (not onto the device): their feature size decides which
+// pipeline variant each mip takes (prefiltered_parts()), and every variant is made there.
 #pragma once
 #include <array>
 #include <cstdint>
@@ -46,11 +48,21 @@ struct GpuComposerOptions {
   bool specialise = true;
 };
 
+// The log2 feature size of each material (its statistics block's TVT_STATS_FEATURE_LOG2_SIZE),
+// which decides where a prefiltered mip takes an FBPB material's features at points and where
+// in expectation (tvt_feature_points_hold). NaN for a material not loaded yet: no page that
+// reads it is composed before it is, so its FBPB parts are left out until then (the composer
+// works the parts out again when one loads; see GpuComposer).
+using FeatureSizes = std::array<float, gpu::TVT_MAX_MATERIALS>;
+// The sizes of the materials `scene` has loaded (0 where a material has no features), NaN for
+// the rest; none NaN after load_all().
+FeatureSizes loaded_feature_sizes(const PackedScene& scene);
+
 // Which parts of the prefiltered composition (TVT_PART_* bits, compose_types.h) a page of mip
 // `mip` can reach under `params`: a cleared bit is a part whose weight is zero for every
 // material at that footprint, so the pipeline for that mip leaves it out. Conservative (a bit
 // is kept where float rounding could decide either way); all bits for unvalidated numbers.
-uint32_t prefiltered_parts(const gpu::TvtComposeParams& params, uint32_t mip);
+uint32_t prefiltered_parts(const gpu::TvtComposeParams& params, uint32_t mip, const FeatureSizes& sizes);
 
 // The (material, layer) pairs whose DPT samples a page of mip `mip` can reach
 // (TVT_COMPOSE_SPEC_SAMPLE_PAIRS, tvt_sample_pairs_*), in material and layer order, where
@@ -165,8 +177,9 @@ class GpuComposer {
   // mip of the VT when they ask for that strategy (create() and set_params(), so that no
   // driver compiles inside a frame); false after a failed Vulkan call.
   bool make_variants();
-  // What the variants are specialised to, from params_ (create() and set_params()): record()
-  // only looks them up.
+  // What the variants are specialised to, from params_ and the FBPB materials' feature sizes
+  // (create() and set_params(), which load those materials on the host for it under the
+  // prefiltered strategy): record() only looks them up.
   void derive_specialisation();
   uint32_t spec_modes_ = 0xffffffffu;
   bool spec_hex_ = true;
@@ -175,6 +188,7 @@ class GpuComposer {
                                               // less the samples where sample_pairs() has them
   std::array<uint32_t, 64> pairs_by_mip_{};   // sample_pairs() of each mip
   uint32_t direct_parts_ = 0xffffffffu;       // direct_parts()
+  PackedScene scene_;  // the materials' shared cache (not the weights): their feature sizes
   std::deque<Variant> variants_;  // a deque: variant() pointers stay valid as it grows
   vk::DescriptorSet descriptors_;  // from the first variant's (identically defined) layout
 };

@@ -587,13 +587,14 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
       dev = dpt_dev;
     } else if (mode_is(mode, TVT_MODE_FBPB) || mode_is(mode, TVT_MODE_FBPB_DPT)) {
       const float non_feature = dpt_b;
-      const float fade_end = max(P.materials[n].fbpb_fade_hi, P.materials[n].fbpb_fade_lo);
       // Prefiltered: level 0's own feature fade (what the truth holds; 1 for the default scenes),
-      // and the features exact at points until one LOD past the fade's end, then in expectation.
+      // and the features exact at points while the footprint is about a feature or less, then in
+      // expectation (tvt_feature_points_hold: 1 or 0, never both).
       const float fade0 =
           prefiltered ? 1.0 - ramp(material_lod(n, 1.0), P.materials[n].fbpb_fade_lo, P.materials[n].fbpb_fade_hi) : 1.0;
-      const float fade = prefiltered ? (fade0 > 0.0 ? 1.0 - ramp(lod, fade_end + TVT_FEATURE_POINTS_LODS, fade_end + TVT_FEATURE_POINTS_LODS + 1.0) : 0.0)
-                                     : 1.0 - ramp(lod, P.materials[n].fbpb_fade_lo, P.materials[n].fbpb_fade_hi);
+      const float fade =
+          prefiltered ? (fade0 > 0.0 && tvt_feature_points_hold(lod, material_stat(n, TVT_STATS_FEATURE_LOG2_SIZE)) ? 1.0 : 0.0)
+                      : 1.0 - ramp(lod, P.materials[n].fbpb_fade_lo, P.materials[n].fbpb_fade_hi);
       const bool with_dpt = mode_is(mode, TVT_MODE_FBPB_DPT);
       const float plain_fallback = with_dpt ? non_feature : plain_b;
       // Prefiltered FBPB+DPT: a ground texel takes DPT's blend value at its own A, the
@@ -655,7 +656,7 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
         // texel's colour, so its plain share (1 - fade0) too.
         const float chip_b = df.x * (fade0 * chip_feature + (1.0 - fade0) * plain_fallback * chip_share);
         if (fallback > 0.0) colour.rgb *= 1.0 - (1.0 - P.materials[n].colour_coeff) * min(chip_b / fallback, 1.0);
-        feature_shift = (1.0 - fade) * fade0 * (w_feature - w_ground);
+        feature_shift = fade0 * (w_feature - w_ground);  // fade is 0 here
       }
       float w = 0.0;
       if (part(TVT_PART_FEATURES) && fade > 0.0) {
@@ -700,13 +701,12 @@ vec4 compose_sample(int64_t x_fp, int64_t y_fp, float footprint, uint material_m
         visible = 2 * shown >= kk * kk;  // direct: the sample's feature; prefiltered: half the points
         if (prefiltered) {
           // The points' mean, faded as level 0 fades them (its plain share in each point's own
-          // colour, darkened where chipped), and the colour that makes mix(result, colour, b)
-          // that mean plus the expectation's share.
+          // colour, darkened where chipped), and their w-weighted colour: mix(result, colour, b)
+          // is then that mean of the points' blends.
           const float per_point = 1.0 / float(kk * kk);
           w = fade0 * per_point * w + (1.0 - fade0) * plain_fallback;
           weighted = per_point * (fade0 * weighted + (1.0 - fade0) * plain_fallback * points_colour);
-          const float b_mix = fade * w + (1.0 - fade) * fallback;
-          if (b_mix > 0.0) colour = (fade * weighted + (1.0 - fade) * fallback * colour) / b_mix;
+          if (w > 0.0) colour = weighted / w;  // fade is 1 here: a switch, not a ramp
         }
       }
       b = fade * w + (1.0 - fade) * fallback;

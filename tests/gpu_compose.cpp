@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <bit>
 #include <filesystem>
+#include <cmath>
 #include <limits>
 #include <map>
 #include <set>
@@ -303,9 +304,9 @@ TEST_F(GpuCompose, SampledLayersBeforeOrInTheMaterialLoopChangeNoByte) {
   for (const uint32_t mip : {3u, 4u})  // the small layer of both materials
     EXPECT_EQ(gpu::tvt_sample_pairs_count(sample_pairs(params, mip)), 2u) << mip;
   EXPECT_EQ(sample_pairs(params, 5), 0u);  // both layers of both: four pairs
-  EXPECT_NE(prefiltered_parts(params, 5) & gpu::TVT_PART_DPT_SAMPLES, 0u);
+  EXPECT_NE(prefiltered_parts(params, 5, loaded_feature_sizes(packed.value())) & gpu::TVT_PART_DPT_SAMPLES, 0u);
   EXPECT_EQ(sample_pairs(params, 6), 0u);  // the large layers, whose lattices may span 3 weight texels
-  EXPECT_NE(prefiltered_parts(params, 6) & gpu::TVT_PART_DPT_SAMPLES_WIDE, 0u);
+  EXPECT_NE(prefiltered_parts(params, 6, loaded_feature_sizes(packed.value())) & gpu::TVT_PART_DPT_SAMPLES_WIDE, 0u);
   std::vector<PageId> pages;
   for (uint32_t mip = 2; mip <= 8; ++mip) pages.push_back(PageId{mip, 5u >> (mip / 2), 7u >> (mip / 2)});
   expect_specialised_unchanged(packed.value(), pages, "grass and mud sampled");
@@ -313,9 +314,10 @@ TEST_F(GpuCompose, SampledLayersBeforeOrInTheMaterialLoopChangeNoByte) {
 
 // Level 0 half-way through the FBPB fade (fade0 = 0.5) with chipped holes: the prefiltered
 // points' plain share in each point's own colour and the expectation's darkened plain share,
-// on the GPU as in the reference, at the points' mips (1-2) and the expectation's (3-4).
+// on the GPU as in the reference, at the points' mips (1-2) and the expectation's (3-4; the
+// statistics block says the typical feature is small).
 TEST_F(GpuCompose, PrefilteredFeaturesHalfWayThroughLevel0sFadeMatchReference) {
-  SceneAssets a = test::big_feature_scene(0.5f);
+  SceneAssets a = test::big_feature_scene(0.5f, 40);
   MetaTexture& meta = a.materials->edit(1).meta.value();
   for (int y = 0; y < 64; ++y)
     for (int x = 0; x < 64; ++x) meta.texels[size_t(y) * 64 + size_t(x)].variation = uint8_t(gpu::tvt_hash_coord(x, y, 5u) & 0xffu);
@@ -334,7 +336,7 @@ TEST_F(GpuCompose, PrefilteredFeaturesHalfWayThroughLevel0sFadeMatchReference) {
 // footprint), 3 x 3 at mip 3 (a third of a footprint apart, rounded in fixed point), and the
 // expectation past them, on the GPU as in the reference.
 TEST_F(GpuCompose, PrefilteredSmallFeaturesAtFourAndThreePointsMatchReference) {
-  const SceneAssets a = test::small_stone_scene(1.0f, 2.0f);  // points until LOD 3
+  const SceneAssets a = test::small_stone_scene(1.0f, 2.0f, 16);  // told 10 texels: at points up to LOD 3.57
   std::vector<PageId> pages;
   for (uint32_t mip = 2; mip <= 4; ++mip) pages.push_back(PageId{mip, 3u >> (mip / 2), 2u >> (mip / 2)});
   expect_agreement(a, options_for(Method::FbpbDpt, MipStrategy{1, true}), pages, "small stones at points");
@@ -347,14 +349,22 @@ TEST_F(GpuCompose, EveryVariantOfTheVtsMipsIsMadeBeforeTheFirstPage) {
   ASSERT_TRUE(packed.ok()) << packed.error().message;
   const gpu::TvtComposeParams& params = packed.value().params;
   const uint32_t top = uint32_t(params.log2_vt) - uint32_t(std::countr_zero(uint32_t(params.page_texels)));
+  // The composer loads the FBPB materials (the cobbles) on the host for their feature size,
+  // which picks each mip's variant; the rest come with the pages that read them.
+  ASSERT_EQ(packed.value().loaded_mask(), 0u);
+  auto c = GpuComposer::create(ctx(), packed.value(), 4);
+  ASSERT_TRUE(c.ok()) << c.error().message;
+  uint32_t fbpb = 0;
+  for (int n = 1; n < params.material_count; ++n) fbpb |= params.materials[n].mode == gpu::TVT_MODE_FBPB_DPT ? 1u << n : 0u;
+  ASSERT_NE(fbpb, 0u);
+  EXPECT_EQ(packed.value().loaded_mask(), fbpb);
+  const FeatureSizes sizes = loaded_feature_sizes(packed.value());
   std::set<std::pair<uint32_t, uint32_t>> parts;  // what a mip's variant is specialised to
   for (uint32_t mip = 1; mip <= top; ++mip) {
     const uint32_t pairs = sample_pairs(params, mip);
-    parts.emplace(prefiltered_parts(params, mip) & (pairs ? ~gpu::TVT_PART_DPT_SAMPLES : ~0u), pairs);
+    parts.emplace(prefiltered_parts(params, mip, sizes) & (pairs ? ~gpu::TVT_PART_DPT_SAMPLES : ~0u), pairs);
   }
   ASSERT_GE(parts.size(), 2u);  // else this scene would not tell
-  auto c = GpuComposer::create(ctx(), packed.value(), 4);
-  ASSERT_TRUE(c.ok()) << c.error().message;
   EXPECT_EQ(c.value()->pipeline_count(), 1 + parts.size());  // direct, and one per distinct set of parts and pairs
   std::vector<PageId> pages;
   for (uint32_t mip = 0; mip <= top; ++mip) pages.push_back(PageId{mip, 0, 0});
@@ -404,9 +414,15 @@ gpu::TvtComposeParams prefiltered_params() {
   p.weight_height = 512;
   return p;
 }
+// Feature sizes of no loaded material.
+FeatureSizes unknown_sizes() {
+  FeatureSizes sizes;
+  sizes.fill(std::numeric_limits<float>::quiet_NaN());
+  return sizes;
+}
 }  // namespace
 
-TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureFadeWithTheFootprint) {
+TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureSizeWithTheFootprint) {
   gpu::TvtComposeParams p = prefiltered_params();  // every sample lattice below is narrower than a weight texel
   gpu::TvtMaterial& dpt = p.materials[1];
   dpt.mode = gpu::TVT_MODE_DPT;
@@ -423,44 +439,61 @@ TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureFadeWithTheFootprint)
   fbpb.fbpb_fade_lo = 1.0f;
   fbpb.fbpb_fade_hi = 2.0f;
   using namespace gpu;
-  // Footprint 2: 32 texels a patch, exact; features exact at points (LOD 1 < 2).
-  EXPECT_EQ(prefiltered_parts(p, 1), TVT_PART_DPT_POINT | TVT_PART_FEATURES);
-  EXPECT_EQ(prefiltered_parts(p, 2), TVT_PART_DPT_POINT | TVT_PART_FEATURES);
-  // The features stay exact at points until TVT_FEATURE_POINTS_LODS (1) past the fade's end
-  // (LOD 2), then give way to their expectation over one LOD: LOD 3 and 4 sit on that ramp's
-  // ends (fade 1 and 0). The LOD at a power-of-two footprint is exactly mip + lod_bias, so only
-  // the points at LOD 3 and only the expectation at LOD 4.
-  EXPECT_EQ(gpu::TVT_FEATURE_POINTS_LODS, 1.0f);
-  EXPECT_EQ(prefiltered_parts(p, 3), TVT_PART_DPT_POINT | TVT_PART_FEATURES);
-  EXPECT_EQ(prefiltered_parts(p, 4), TVT_PART_DPT_POINT | TVT_PART_FEATURE_EXPECT);
+  // Material 2's features 2^2.9 = 7.5 texels a side: exact at points while the LOD is below
+  // 2.9 + TVT_FEATURE_POINTS_REL = 3.15, in expectation from there; a switch, never both.
+  FeatureSizes sizes = unknown_sizes();
+  sizes[2] = 2.9f;
+  EXPECT_EQ(TVT_FEATURE_POINTS_REL, 0.25f);
+  // Footprint 2: 32 texels a patch, exact; features exact at points (LOD 1).
+  EXPECT_EQ(prefiltered_parts(p, 1, sizes), TVT_PART_DPT_POINT | TVT_PART_FEATURES);
+  EXPECT_EQ(prefiltered_parts(p, 2, sizes), TVT_PART_DPT_POINT | TVT_PART_FEATURES);
+  EXPECT_EQ(prefiltered_parts(p, 3, sizes), TVT_PART_DPT_POINT | TVT_PART_FEATURES);
+  EXPECT_EQ(prefiltered_parts(p, 4, sizes), TVT_PART_DPT_POINT | TVT_PART_FEATURE_EXPECT);
+  // The LOD at a power-of-two footprint is exactly mip + lod_bias, and the host decides the
+  // switch in the shader's float arithmetic: a size whose edge is LOD 3 exactly puts LOD 3 in
+  // expectation, one a float step larger keeps it at points.
+  sizes[2] = 2.75f;
+  EXPECT_EQ(prefiltered_parts(p, 3, sizes), TVT_PART_DPT_POINT | TVT_PART_FEATURE_EXPECT);
+  sizes[2] = std::nextafter(2.75f, 3.0f);
+  EXPECT_EQ(prefiltered_parts(p, 3, sizes), TVT_PART_DPT_POINT | TVT_PART_FEATURES);
+  // The size is the feature's, not the fade's: the fade's end (LOD 2) moves nothing.
+  fbpb.fbpb_fade_lo = 0.0f;
+  fbpb.fbpb_fade_hi = 0.5f;
+  EXPECT_EQ(prefiltered_parts(p, 3, sizes), TVT_PART_DPT_POINT | TVT_PART_FEATURES);
+  fbpb.fbpb_fade_lo = 1.0f;
+  fbpb.fbpb_fade_hi = 2.0f;
+  // Not loaded (NaN): no page reads it until it is, and then its parts are worked out again.
+  EXPECT_EQ(prefiltered_parts(p, 3, unknown_sizes()), TVT_PART_DPT_POINT);
+  EXPECT_EQ(prefiltered_parts(p, 8, unknown_sizes()), TVT_PART_DPT_EXPECT | TVT_PART_DPT_SAMPLES);
+  sizes[2] = 2.9f;
   // Two material texels a level-0 texel: the LOD is the mip + 1 (as pack_scene() sets it).
   fbpb.lod_bias = 1.0f;
-  EXPECT_EQ(prefiltered_parts(p, 2), TVT_PART_DPT_POINT | TVT_PART_FEATURES);
-  EXPECT_EQ(prefiltered_parts(p, 3), TVT_PART_DPT_POINT | TVT_PART_FEATURE_EXPECT);
+  EXPECT_EQ(prefiltered_parts(p, 2, sizes), TVT_PART_DPT_POINT | TVT_PART_FEATURES);
+  EXPECT_EQ(prefiltered_parts(p, 3, sizes), TVT_PART_DPT_POINT | TVT_PART_FEATURE_EXPECT);
   // Level 0 past the feature fade (its LOD 2 at the fade's end): the truth has no features, so
   // no prefiltered mip keeps either part.
   fbpb.lod_bias = 2.0f;
-  EXPECT_EQ(prefiltered_parts(p, 1), TVT_PART_DPT_POINT);
-  EXPECT_EQ(prefiltered_parts(p, 4), TVT_PART_DPT_POINT);
+  EXPECT_EQ(prefiltered_parts(p, 1, sizes), TVT_PART_DPT_POINT);
+  EXPECT_EQ(prefiltered_parts(p, 4, sizes), TVT_PART_DPT_POINT);
   fbpb.lod_bias = 0.0f;
   // Footprint 32 is on the patch ramp's upper end (2 texels of patch a texel) and 128 on its
   // lower end: the shader's ratio is exact at power-of-two footprints and its ramp is exactly 1
   // and 0 there, so the expectation (and its samples) and the point value are left out.
-  EXPECT_EQ(prefiltered_parts(p, 5), TVT_PART_DPT_POINT | TVT_PART_FEATURE_EXPECT);
-  EXPECT_EQ(prefiltered_parts(p, 6),
+  EXPECT_EQ(prefiltered_parts(p, 5, sizes), TVT_PART_DPT_POINT | TVT_PART_FEATURE_EXPECT);
+  EXPECT_EQ(prefiltered_parts(p, 6, sizes),
             TVT_PART_ALL & ~TVT_PART_FEATURES & ~TVT_PART_DPT_SAMPLES_WIDE & ~TVT_PART_DPT_CORNERS_WIDE &
                 ~TVT_PART_FEATURE_WEIGHTS_WIDE);
-  EXPECT_EQ(prefiltered_parts(p, 7), TVT_PART_DPT_EXPECT | TVT_PART_DPT_SAMPLES | TVT_PART_FEATURE_EXPECT);
+  EXPECT_EQ(prefiltered_parts(p, 7, sizes), TVT_PART_DPT_EXPECT | TVT_PART_DPT_SAMPLES | TVT_PART_FEATURE_EXPECT);
   // Footprint 256: four patches a side, in expectation from samples; 1024: 16, expectation alone.
-  EXPECT_EQ(prefiltered_parts(p, 8), TVT_PART_DPT_EXPECT | TVT_PART_DPT_SAMPLES | TVT_PART_FEATURE_EXPECT);
-  EXPECT_EQ(prefiltered_parts(p, 10), TVT_PART_DPT_EXPECT | TVT_PART_FEATURE_EXPECT);
+  EXPECT_EQ(prefiltered_parts(p, 8, sizes), TVT_PART_DPT_EXPECT | TVT_PART_DPT_SAMPLES | TVT_PART_FEATURE_EXPECT);
+  EXPECT_EQ(prefiltered_parts(p, 10, sizes), TVT_PART_DPT_EXPECT | TVT_PART_FEATURE_EXPECT);
   // The samples' corner lattice spans the footprint and a patch either side: 256 + 128 level-0
   // texels at footprint 256. A weight texel every 256 texels (4096 a side) is not enough
   // margin, every 512 is; no weights (parameters not from pack_scene) keep the wide path.
   for (const int size : {4096, 2048, 0}) {
     p.weight_width = size;
-    EXPECT_EQ(prefiltered_parts(p, 8) & TVT_PART_DPT_SAMPLES_WIDE, size == 2048 ? 0u : TVT_PART_DPT_SAMPLES_WIDE) << size;
-    EXPECT_EQ(prefiltered_parts(p, 5) & TVT_PART_DPT_SAMPLES_WIDE, 0u) << size;  // no samples at footprint 32
+    EXPECT_EQ(prefiltered_parts(p, 8, sizes) & TVT_PART_DPT_SAMPLES_WIDE, size == 2048 ? 0u : TVT_PART_DPT_SAMPLES_WIDE) << size;
+    EXPECT_EQ(prefiltered_parts(p, 5, sizes) & TVT_PART_DPT_SAMPLES_WIDE, 0u) << size;  // no samples at footprint 32
   }
   // A patch cell's corners lie one patch (64 texels, + 1 for rounding) apart: narrow at any
   // weight grid up to 16384 a side (a texel every 64 texels, less the margin, is not enough),
@@ -469,9 +502,9 @@ TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureFadeWithTheFootprint)
   for (const int size : {16384, 8192, 0}) {
     p.weight_width = size;
     const uint32_t wide = size == 8192 ? 0u : TVT_PART_DPT_CORNERS_WIDE;
-    EXPECT_EQ(prefiltered_parts(p, 1) & TVT_PART_DPT_CORNERS_WIDE, wide) << size;
-    EXPECT_EQ(prefiltered_parts(p, 6) & TVT_PART_DPT_CORNERS_WIDE, wide) << size;
-    EXPECT_EQ(prefiltered_parts(p, 8) & TVT_PART_DPT_CORNERS_WIDE, 0u) << size;  // no point value at footprint 256
+    EXPECT_EQ(prefiltered_parts(p, 1, sizes) & TVT_PART_DPT_CORNERS_WIDE, wide) << size;
+    EXPECT_EQ(prefiltered_parts(p, 6, sizes) & TVT_PART_DPT_CORNERS_WIDE, wide) << size;
+    EXPECT_EQ(prefiltered_parts(p, 8, sizes) & TVT_PART_DPT_CORNERS_WIDE, 0u) << size;  // no point value at footprint 256
     EXPECT_EQ(direct_parts(p), TVT_PART_ALL & ~(TVT_PART_DPT_CORNERS_WIDE & ~wide)) << size;
   }
   // The FBPB points' feature centroids lie within half the footprint and a tile's reach of the
@@ -481,21 +514,21 @@ TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureFadeWithTheFootprint)
   for (const int size : {2048, 1024, 0}) {
     p.weight_width = size;
     const uint32_t wide = size == 1024 ? 0u : TVT_PART_FEATURE_WEIGHTS_WIDE;
-    EXPECT_EQ(prefiltered_parts(p, 1) & TVT_PART_FEATURE_WEIGHTS_WIDE, wide) << size;
-    EXPECT_EQ(prefiltered_parts(p, 3) & TVT_PART_FEATURE_WEIGHTS_WIDE, wide) << size;
-    EXPECT_EQ(prefiltered_parts(p, 4) & TVT_PART_FEATURE_WEIGHTS_WIDE, 0u) << size;  // no points at LOD 4
+    EXPECT_EQ(prefiltered_parts(p, 1, sizes) & TVT_PART_FEATURE_WEIGHTS_WIDE, wide) << size;
+    EXPECT_EQ(prefiltered_parts(p, 3, sizes) & TVT_PART_FEATURE_WEIGHTS_WIDE, wide) << size;
+    EXPECT_EQ(prefiltered_parts(p, 4, sizes) & TVT_PART_FEATURE_WEIGHTS_WIDE, 0u) << size;  // no points at LOD 4
     EXPECT_NE(direct_parts(p) & TVT_PART_FEATURE_WEIGHTS_WIDE, 0u) << size;
   }
   p.weight_width = 512;
   // FBPB features that have faded out before the finest texture level: never in expectation.
   fbpb.fbpb_fade_lo = -2.0f;
   fbpb.fbpb_fade_hi = -1.0f;
-  EXPECT_EQ(prefiltered_parts(p, 10), TVT_PART_DPT_EXPECT);
+  EXPECT_EQ(prefiltered_parts(p, 10, sizes), TVT_PART_DPT_EXPECT);
   // A DPT layer below the minification fade is absent at every prefiltered footprint; a
   // direct page supersampled 4 x 4 (footprint 1/4) shows it, so direct pages keep the general
   // path where it would be wide (a weight texel every 0.5 level-0 texels).
   dpt.dpt[0].patch_texels = 0.5f;
-  EXPECT_EQ(prefiltered_parts(p, 1), 0u);
+  EXPECT_EQ(prefiltered_parts(p, 1, sizes), 0u);
   p.log2_vt = 10;
   p.weight_width = 2048;
   EXPECT_EQ(direct_parts(p), TVT_PART_ALL);
@@ -504,11 +537,11 @@ TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureFadeWithTheFootprint)
   EXPECT_EQ(direct_parts(p), TVT_PART_ALL & ~TVT_PART_DPT_CORNERS_WIDE);
   // Numbers no validated scene has keep every part.
   dpt.dpt[0].patch_texels = std::numeric_limits<float>::quiet_NaN();
-  EXPECT_EQ(prefiltered_parts(p, 4), TVT_PART_ALL);
+  EXPECT_EQ(prefiltered_parts(p, 4, sizes), TVT_PART_ALL);
   EXPECT_EQ(direct_parts(p), TVT_PART_ALL);
   dpt.dpt[0].patch_texels = 64.0f;
   fbpb.period_fp = 0;
-  EXPECT_EQ(prefiltered_parts(p, 4), TVT_PART_ALL);
+  EXPECT_EQ(prefiltered_parts(p, 4, sizes), TVT_PART_ALL);
 }
 
 // The (material, layer) pairs whose samples a mip reaches, sampled before the material loop:
@@ -517,6 +550,7 @@ TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureFadeWithTheFootprint)
 // not a validated scene's.
 TEST(SamplePairs, NameTheSampledLayersInOrderUpToTheMost) {
   gpu::TvtComposeParams p = prefiltered_params();  // the lattices below are narrow
+  const FeatureSizes sizes = unknown_sizes();      // the pairs are DPT's alone
   for (int n = 1; n < 4; ++n) {
     gpu::TvtMaterial& m = p.materials[n];
     m.mode = n == 2 ? gpu::TVT_MODE_FBPB_DPT : gpu::TVT_MODE_DPT;
@@ -541,7 +575,7 @@ TEST(SamplePairs, NameTheSampledLayersInOrderUpToTheMost) {
   ASSERT_EQ(TVT_SAMPLE_PAIRS_MAX, 2);
   // Footprint 8: both layers exact (8 and 2 texels of patch a texel), no samples.
   EXPECT_EQ(sample_pairs(p, 3), 0u);
-  EXPECT_EQ(prefiltered_parts(p, 3) & TVT_PART_DPT_SAMPLES, 0u);
+  EXPECT_EQ(prefiltered_parts(p, 3, sizes) & TVT_PART_DPT_SAMPLES, 0u);
   // Footprint 256: the 64-texel patches in expectation from samples (4 a side), the 16-texel ones
   // in expectation alone (16 a side).
   EXPECT_EQ(pairs(sample_pairs(p, 8)), (Pairs{{1, 0}, {2, 0}}));
@@ -549,7 +583,7 @@ TEST(SamplePairs, NameTheSampledLayersInOrderUpToTheMost) {
   EXPECT_EQ(pairs(sample_pairs(p, 5)), (Pairs{{1, 1}}));
   // Footprint 64: one patch and four a side, both sampled: three pairs, in the loop.
   EXPECT_EQ(sample_pairs(p, 6), 0u);
-  EXPECT_NE(prefiltered_parts(p, 6) & TVT_PART_DPT_SAMPLES, 0u);
+  EXPECT_NE(prefiltered_parts(p, 6, sizes) & TVT_PART_DPT_SAMPLES, 0u);
   // Material 2's layer below the minification fade has no samples at any footprint.
   p.materials[2].dpt[0].patch_texels = 0.5f;
   EXPECT_EQ(pairs(sample_pairs(p, 6)), (Pairs{{1, 0}, {1, 1}}));

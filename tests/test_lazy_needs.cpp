@@ -1,6 +1,7 @@
 // MaterialCuller::needs(): which texture levels and meta-textures a page reads (what the lazy
 // material upload copies). The GPU side checks exactness against poisoned buffers
-// (tests/gpu_lazy_materials.cpp); here the level arithmetic and the FBPB fade rule.
+// (tests/gpu_lazy_materials.cpp); here the level arithmetic, the FBPB fade rule and
+// the prefiltered features' switch from points to expectation.
 #include <gtest/gtest.h>
 
 #include "compose/material_culling.h"
@@ -75,8 +76,11 @@ TEST(LazyNeeds, PrefilteredFbpbReadsTheMetaBlockAtEveryMipWhereLevel0HasFeatures
 // Prefiltered FBPB features at k x k points read the texture tvt_feature_point_lods(k) finer:
 // k = 3 (two LODs finer) under FBPB+DPT where the LOD is above the log2 feature size less 1.5
 // (tvt_feature_points), from the material's statistics; 2 (one LOD finer) under FBPB alone.
+// They are at points while the LOD is below the log2 feature size + TVT_FEATURE_POINTS_REL
+// (tvt_feature_points_hold), in expectation past it, at the footprint's own levels.
 TEST(LazyNeeds, PrefilteredFeaturePointsReadOneOrTwoLodsFiner) {
-  // R / T = 1/3: lod = mip - 1.585; mip 4 is lod 2.415, within the points (to lod 5).
+  // R / T = 1/3: lod = mip - 1.585; mip 4 is lod 2.415, at points for 5-texel features and
+  // larger (log2 5 + 0.25 = 2.57).
   const PackedScene small = scene(48.0, 1, Mode::FbpbDpt, true, 5);  // log2 5 - 1.5 = 0.82: k = 3
   EXPECT_EQ(int(MaterialCuller(small).needs(PageId{4, 0, 0}, 3u).finest_level[1]), 0);
   const PackedScene small_fbpb = scene(48.0, 1, std::nullopt, true, 5);  // FBPB alone: k = 2
@@ -86,7 +90,12 @@ TEST(LazyNeeds, PrefilteredFeaturePointsReadOneOrTwoLodsFiner) {
   EXPECT_EQ(int(MaterialCuller(big).needs(PageId{4, 0, 0}, 3u).finest_level[1]), 1);
   const PackedScene almost = scene(48.0, 1, Mode::FbpbDpt, true, 15);  // log2 15 - 1.5 = 2.41: k = 3
   EXPECT_EQ(int(MaterialCuller(almost).needs(PageId{4, 0, 0}, 3u).finest_level[1]), 0);
-  // Past the points (lod 6.4, the expectation alone): the footprint's own levels.
+  // Mip 5, lod 3.415: past the 5-texel features' points (the expectation, level 3), within the
+  // whole-tile feature's (log2 16 + 0.25 = 4.25; k = 3, level 1).
+  EXPECT_EQ(int(MaterialCuller(small).needs(PageId{5, 0, 0}, 3u).finest_level[1]), 3);
+  EXPECT_EQ(int(MaterialCuller(small_fbpb).needs(PageId{5, 0, 0}, 3u).finest_level[1]), 3);
+  EXPECT_EQ(int(MaterialCuller(big).needs(PageId{5, 0, 0}, 3u).finest_level[1]), 1);
+  // Past every size's points (lod 6.4, the expectation alone): the footprint's own levels.
   for (const PackedScene* s : {&small, &small_fbpb, &big})
     EXPECT_EQ(int(MaterialCuller(*s).needs(PageId{8, 0, 0}, 3u).finest_level[1]), 4);
 }

@@ -284,12 +284,14 @@ TEST(Prefiltered, SpreadChainHoldsEachBlocksTwoPiecesOfA) {
   EXPECT_LT(smallest, 0.05);  // the smooth half: a local spread several-fold smaller
 }
 
-// Features larger than the footprint, past the end of the FBPB fade (their expectation): the
-// prefiltered texel follows what its footprint holds (this feature's decision, the local
-// feature fraction and colour), not the texture's mean feature fraction, so it lands near the
-// box filter of level 0 inside features, on the ground between them and across their edges.
+// Features larger than the footprint in expectation (the statistics block says the typical
+// feature is far smaller, as where features vary in size; mip 2 is still at points, mips 3 and
+// 4 in expectation): the prefiltered texel follows what its footprint holds (this feature's
+// decision, the local feature fraction and colour), not the texture's mean feature fraction,
+// so it lands near the box filter of level 0 inside features, on the ground between them and
+// across their edges.
 TEST(Prefiltered, FeaturesFollowWhatTheFootprintHolds) {
-  const SceneAssets a = test::big_feature_scene(0.5f);
+  const SceneAssets a = test::big_feature_scene(0.5f, 40);  // the expectation from LOD 2.63
   const PackedScene direct = pack(a), pre = pack(a, prefiltered_options());
   for (const uint32_t mip : {2u, 3u, 4u}) {
     double err = 0, worst = 0, lowest = 1, highest = 0;
@@ -314,7 +316,7 @@ TEST(Prefiltered, FeaturesFollowWhatTheFootprintHolds) {
 // variation map's distribution, and a prefiltered texel past the points takes the chipped share
 // of each visible feature as ground, darkened, as level 0 does texel by texel.
 TEST(Prefiltered, ChippedHolesAreInTheFeatureExpectation) {
-  SceneAssets a = test::big_feature_scene(0.5f);
+  SceneAssets a = test::big_feature_scene(0.5f, 40);  // the expectation from LOD 2.63
   {
     MetaTexture& meta = a.materials->edit(1).meta.value();
     for (int y = 0; y < 64; ++y)
@@ -345,7 +347,7 @@ TEST(Prefiltered, ChippedHolesAreInTheFeatureExpectation) {
     SceneAssets unchipped = a;
     unchipped.desc.materials[1].fbpb.variation_threshold = 0.0;
     const PackedScene direct = pack(a), pre = pack(a, prefiltered_options()), plain_truth = pack(unchipped);
-    for (const uint32_t mip : {3u, 4u}) {  // past the points (fade ends by LOD 1, points to LOD 2)
+    for (const uint32_t mip : {3u, 4u}) {  // in expectation (LOD 2.63 on)
       double err = 0, chipping = 0;
       const int64_t n = 24, step = (int64_t(1) << (10 - mip)) / n;
       for (int64_t y = 0; y < n; ++y)
@@ -421,7 +423,7 @@ double box_filter_error(const PackedScene& direct, const PackedScene& composed, 
 
 }  // namespace
 
-// Where the features are exact at points (mips up to one LOD past the fade's end), each point
+// Where the features are exact at points (a footprint no wider than a feature), each point
 // stands for a quarter of the footprint with the texture one LOD finer. At mip 1 the points
 // are the four level-0 texel centres and the texture is level 0's, so over a uniform base and
 // a constant weight the prefiltered texel is the box filter of level 0 itself: stone edges,
@@ -461,19 +463,23 @@ TEST(Prefiltered, FeaturesAtPointsFollowLevel0HalfWayThroughTheFade) {
 // not be. The DPT layer has no patches (p = 0), so the ground's value is 0 at level 0 and in
 // the footprint alike.
 TEST(Prefiltered, SmallFeaturesTakeFourByFourPointsExactAtMip2) {
-  const SceneAssets a = test::small_stone_scene(0.0f, 1.0f);  // points until LOD 2
+  const SceneAssets a = test::small_stone_scene(0.0f, 1.0f);  // at points up to LOD 2.57
   const PackedScene direct = pack(a), pre = pack(a, prefiltered_options());
   EXPECT_EQ(gpu::tvt_feature_points(2.0f, float(0.5 * std::log2(25.0)), true), 4);
   EXPECT_GT(box_filter_texels(direct, pre, 2, 48, {5, 3}, {3, 1}), 100);  // stone edges and stones of their own decision inside most footprints
 }
 
-// The same stones at mip 3, an 8-texel footprint: 3 x 3 points, each reading the texture two
+// The same stones at mip 3, an 8-texel footprint, with the statistics block told they are 10
+// texels wide (so that they stay at points there): 3 x 3 points, each reading the texture two
 // LODs finer (level 1). They are no longer the box filter (a point stands for 8/3 texels), but
 // against it they are far closer than a point sample, and than 2 x 2 points over the same
-// stones (the same scene with the statistics block told the stones are large, so that k = 2):
-// two points 4 texels apart a side fall both on stones or both between them across an 8-texel
-// period, where three see its share. At mip 2 (a 4-texel footprint) three points a side would
-// read 3 of its 4 texel columns and miss one: hence 4 x 4 there (the test above).
+// stones (the block told the stones are 40 texels wide, so that k = 2): two points 4 texels
+// apart a side fall both on stones or both between them across an 8-texel period, where three
+// see its share. At mip 2 (a 4-texel footprint) three points a side would read 3 of its 4
+// texel columns and miss one: hence 4 x 4 there (the test above). And the stones as they are,
+// 5 texels wide, take the expectation at mip 3 (LOD 3 past 2.32 + TVT_FEATURE_POINTS_REL),
+// closer to the box filter still: past a feature a footprint, points place the features'
+// edges worse than the expectation places their share.
 TEST(Prefiltered, SmallFeaturesTakeThreeByThreePointsAtMip3) {
   const float small = float(0.5 * std::log2(25.0)), large = float(0.5 * std::log2(25.0 * 64));
   EXPECT_EQ(gpu::tvt_feature_points(3.0f, small, true), 3);
@@ -488,12 +494,15 @@ TEST(Prefiltered, SmallFeaturesTakeThreeByThreePointsAtMip3) {
   const auto error = [](const PackedScene& direct, const PackedScene& composed) {
     return box_filter_error(direct, composed, 3, 40, {5, 3}, {3, 1});
   };
-  const SceneAssets three = test::small_stone_scene(1.0f, 2.0f), two = test::small_stone_scene(1.0f, 2.0f, 1);  // points until LOD 3
-  const PackedScene direct = pack(three);
+  const SceneAssets actual = test::small_stone_scene(1.0f, 2.0f);
+  const SceneAssets three = test::small_stone_scene(1.0f, 2.0f, 16), two = test::small_stone_scene(1.0f, 2.0f, 1);
+  const PackedScene direct = pack(actual);  // level 0 does not read the statistics
   const double e_direct = error(direct, direct), e3 = error(direct, pack(three, prefiltered_options()));
-  const double e2 = error(direct, pack(two, prefiltered_options()));  // level 0 does not read the statistics
+  const double e2 = error(direct, pack(two, prefiltered_options()));
+  const double e_expect = error(direct, pack(actual, prefiltered_options()));
   EXPECT_LT(e3, 0.5 * e_direct) << e3 << " " << e_direct;  // 0.071 against 0.203
   EXPECT_LT(e3, 0.5 * e2) << e3 << " " << e2;              // against 0.210
+  EXPECT_LT(e_expect, 0.6 * e3) << e_expect << " " << e3;  // 0.036
 }
 
 // The points' half spacing is footprint / 2k rounded to the nearest fixed-point unit, worked out

@@ -137,10 +137,19 @@ TVT_FN uint tvt_meta_chain_offset(uint res, uint level) {
 // else 3), faded to the expectation between TVT_PATCH_SAMPLES_LO and _HI patches a side.
 TVT_CONST float TVT_PATCH_SAMPLES_LO = 4.0;
 TVT_CONST float TVT_PATCH_SAMPLES_HI = 8.0;
-// Prefiltered FBPB: the features stay exact, at k x k points of the footprint, until this many
-// LODs past the end of the material's feature fade, then give way to their expectation over
-// the next LOD (docs/composition.md, "FBPB features at points").
-TVT_CONST float TVT_FEATURE_POINTS_LODS = 1.0;
+// Prefiltered FBPB: the features stay exact, at k x k points of the footprint, while the
+// footprint is no wider than the typical feature and a little more: the material LOD below the
+// statistics block's log2 feature size + TVT_FEATURE_POINTS_REL (2^0.25 = 1.19 features a side);
+// coarser, they take their expectation. Past a feature a footprint, a handful of points places
+// the features' edges worse than the expectation places their share, and before that the
+// expectation misses how few features a footprint holds (docs/composition.md, "FBPB features
+// at points"). A switch, not a ramp: in between a page would pay for both. Host and shaders
+// evaluate it in the same float arithmetic (tvt_feature_points_hold), so the host knows which
+// of the two a prefiltered mip takes.
+TVT_CONST float TVT_FEATURE_POINTS_REL = 0.25;  // exact in binary: the host and GLSL constants agree
+TVT_FN bool tvt_feature_points_hold(float lod, float feature_log2_size) {
+  return lod < feature_log2_size + TVT_FEATURE_POINTS_REL;
+}
 // k: 2, or under FBPB+DPT (`with_dpt`) 3 where the footprint is wider than about a third of
 // the typical feature (material LOD above the statistics block's log2 feature size less
 // TVT_FEATURE_POINTS_FINER_LODS, 2^-1.5 = 0.35) and spans 4 material texels or more: a point

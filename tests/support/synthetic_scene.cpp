@@ -65,9 +65,11 @@ void set_features(SceneAssets& a, MetaTexture meta, float fade_lod_lo, float fad
 
 }  // namespace
 
-SceneAssets big_feature_scene(float p) {
+SceneAssets big_feature_scene(float p, uint32_t feature_count) {
   SceneAssets a = make_synthetic_assets({k_base, {{0, 40, 200, 128}, p, Mode::Fbpb, 64}});
-  set_features(a, square_feature_meta(64, 32, 32, 32), 0.0f, 1.0f);
+  MetaTexture meta = square_feature_meta(64, 32, 32, 32);
+  meta.feature_count = feature_count;
+  set_features(a, std::move(meta), 0.0f, 1.0f);
   return a;
 }
 
