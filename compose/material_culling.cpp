@@ -7,10 +7,7 @@ namespace tvt {
 
 MaterialCuller::MaterialCuller(const PackedScene& s) {
   // The materials' words, for their statistics (not the weights, which the tables below hold).
-  scene_.params = s.params;
-  scene_.texel_words = s.texel_words;
-  scene_.meta_words = s.meta_words;
-  scene_.cache_ = s.cache_;
+  scene_ = s.materials_only();
   const gpu::TvtComposeParams& p = s.params;
   width_ = p.weight_width;
   height_ = p.weight_height;
@@ -110,8 +107,7 @@ MaterialNeeds MaterialCuller::needs(const PageId& page, uint32_t mask) const {
     // take the feature size in the material's statistics block: the material is loaded here
     // (the upload of what this returns loads it anyway); one that fails to load is taken at
     // points with k > 2, and its upload reports the error.
-    const bool fbpb_meta =
-        n > 0 && (m.mode == gpu::TVT_MODE_FBPB || m.mode == gpu::TVT_MODE_FBPB_DPT) && m.meta_offset != gpu::TVT_NO_META;
+    const bool fbpb_meta = n > 0 && fbpb_mode(m) && m.meta_offset != gpu::TVT_NO_META;
     const bool prefiltered = params_.prefiltered != 0 && page.mip > 0;
     const double level0_lod = std::log2(double(m.resolution) * 256.0 / double(m.period_fp));
     const bool level0_features = prefiltered && level0_lod - k_margin < fbpb_fade_end(m);

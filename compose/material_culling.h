@@ -17,6 +17,10 @@
 
 namespace tvt {
 
+// Whether material m composes with FBPB features (fbpb or fbpb+dpt).
+inline bool fbpb_mode(const gpu::TvtMaterial& m) {
+  return m.mode == gpu::TVT_MODE_FBPB || m.mode == gpu::TVT_MODE_FBPB_DPT;
+}
 // The material LOD at which FBPB features have faded out of direct composition (the end of
 // fade_lod): the composers and the culler agree.
 inline double fbpb_fade_end(const gpu::TvtMaterial& m) {

@@ -77,6 +77,15 @@ Status PackedScene::load(uint32_t mask) const {
 
 const MaterialSource& PackedScene::source() const { return *cache_->source; }
 
+PackedScene PackedScene::materials_only() const {
+  PackedScene s;
+  s.params = params;
+  s.texel_words = texel_words;
+  s.meta_words = meta_words;
+  s.cache_ = cache_;
+  return s;
+}
+
 uint32_t PackedScene::loaded_mask() const {
   uint32_t mask = 0;
   for (size_t n = 0; n < cache_->materials.size() && n < 32; ++n) {

@@ -87,6 +87,9 @@ struct PackedScene {
   std::span<const uint32_t> meta(size_t n) const;
   // The materials' source (load counters).
   const MaterialSource& source() const;
+  // A copy that shares the material cache and parameters but not the weights (for holders of
+  // the materials' words and statistics alone).
+  PackedScene materials_only() const;
 
   struct Cache;  // per material: once flag, packed words or error
   std::shared_ptr<Cache> cache_;

@@ -138,7 +138,7 @@ uint32_t prefiltered_reach(const gpu::TvtComposeParams& p, uint32_t mip, const F
         }
       }
     }
-    if ((m.mode == gpu::TVT_MODE_FBPB || m.mode == gpu::TVT_MODE_FBPB_DPT) && !std::isnan(sizes[size_t(n)])) {
+    if (fbpb_mode(m) && !std::isnan(sizes[size_t(n)])) {
       // compose_sample()'s FBPB branch: the features at points where tvt_feature_points_hold(),
       // else in expectation, both only where level 0 has them (fade0 = 1 - ramp(LOD at one
       // texel, lo, hi) > 0). material_lod() is exactly k + lod_bias at a footprint of 2^k, and
@@ -167,9 +167,14 @@ uint32_t prefiltered_reach(const gpu::TvtComposeParams& p, uint32_t mip, const F
 }
 }  // namespace
 
-FeatureSizes loaded_feature_sizes(const PackedScene& scene) {
+FeatureSizes unknown_feature_sizes() {
   FeatureSizes sizes;
   sizes.fill(std::numeric_limits<float>::quiet_NaN());
+  return sizes;
+}
+
+FeatureSizes loaded_feature_sizes(const PackedScene& scene) {
+  FeatureSizes sizes = unknown_feature_sizes();
   const uint32_t loaded = scene.loaded_mask();
   for (int n = 0; n < scene.params.material_count && n < gpu::TVT_MAX_MATERIALS; ++n)
     if (loaded >> n & 1u) sizes[size_t(n)] = scene.stat(size_t(n), gpu::TVT_STATS_FEATURE_LOG2_SIZE);
@@ -182,10 +187,8 @@ uint32_t prefiltered_parts(const gpu::TvtComposeParams& p, uint32_t mip, const F
 }
 
 uint32_t sample_pairs(const gpu::TvtComposeParams& p, uint32_t mip) {
-  FeatureSizes none;  // the pairs are DPT's alone
-  none.fill(std::numeric_limits<float>::quiet_NaN());
   uint32_t pairs = 0;
-  prefiltered_reach(p, mip, none, &pairs);
+  prefiltered_reach(p, mip, unknown_feature_sizes(), &pairs);  // the pairs are DPT's alone
   return pairs;
 }
 
@@ -215,10 +218,7 @@ Result<std::unique_ptr<GpuComposer>> GpuComposer::create(vk::Context& context, c
   c->slot_texels_ = uint32_t(scene.params.page_texels + 2 * scene.params.border_texels);
   c->params_ = scene.params;
   c->culler_ = std::make_unique<MaterialCuller>(scene);
-  c->scene_.params = scene.params;
-  c->scene_.texel_words = scene.texel_words;
-  c->scene_.meta_words = scene.meta_words;
-  c->scene_.cache_ = scene.cache_;
+  c->scene_ = scene.materials_only();
 
   c->params_buffer_ = context.create_buffer(sizeof(gpu::TvtComposeParams), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
   if (!c->params_buffer_) return context.status().error();
@@ -294,14 +294,9 @@ void GpuComposer::derive_specialisation() {
   // loaded here, on the host, so that every variant is made now, not by the page that first
   // reads the material. One that fails to load is left out: a page that reads it fails its
   // upload, so it is never dispatched (a load's error is kept, not retried).
-  if (params_.prefiltered != 0) {
-    uint32_t fbpb = 0;
+  if (params_.prefiltered != 0)
     for (int n = 1; n < params_.material_count && n < gpu::TVT_MAX_MATERIALS; ++n)
-      if (params_.materials[n].mode == gpu::TVT_MODE_FBPB || params_.materials[n].mode == gpu::TVT_MODE_FBPB_DPT)
-        fbpb |= 1u << n;
-    for (uint32_t rest = fbpb & ~scene_.loaded_mask(); rest != 0; rest &= rest - 1)
-      (void)scene_.load(rest & (~rest + 1));
-  }
+      if (fbpb_mode(params_.materials[n])) (void)scene_.load(1u << n);  // one at a time: a failure stops no other
   const FeatureSizes sizes = loaded_feature_sizes(scene_);
   for (uint32_t mip = 0; mip < parts_by_mip_.size(); ++mip) {
     // prefiltered_parts() and sample_pairs() from one pass over the layers; the layers the

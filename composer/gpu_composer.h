@@ -54,6 +54,8 @@ struct GpuComposerOptions {
 // reads it is composed before it is, so its FBPB parts are left out until then (the composer
 // works the parts out again when one loads; see GpuComposer).
 using FeatureSizes = std::array<float, gpu::TVT_MAX_MATERIALS>;
+// Every size NaN: no material loaded.
+FeatureSizes unknown_feature_sizes();
 // The sizes of the materials `scene` has loaded (0 where a material has no features), NaN for
 // the rest; none NaN after load_all().
 FeatureSizes loaded_feature_sizes(const PackedScene& scene);

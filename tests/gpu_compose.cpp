@@ -414,12 +414,6 @@ gpu::TvtComposeParams prefiltered_params() {
   p.weight_height = 512;
   return p;
 }
-// Feature sizes of no loaded material.
-FeatureSizes unknown_sizes() {
-  FeatureSizes sizes;
-  sizes.fill(std::numeric_limits<float>::quiet_NaN());
-  return sizes;
-}
 }  // namespace
 
 TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureSizeWithTheFootprint) {
@@ -441,7 +435,7 @@ TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureSizeWithTheFootprint)
   using namespace gpu;
   // Material 2's features 2^2.9 = 7.5 texels a side: exact at points while the LOD is below
   // 2.9 + TVT_FEATURE_POINTS_REL = 3.15, in expectation from there; a switch, never both.
-  FeatureSizes sizes = unknown_sizes();
+  FeatureSizes sizes = unknown_feature_sizes();
   sizes[2] = 2.9f;
   EXPECT_EQ(TVT_FEATURE_POINTS_REL, 0.25f);
   // Footprint 2: 32 texels a patch, exact; features exact at points (LOD 1).
@@ -463,8 +457,8 @@ TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureSizeWithTheFootprint)
   fbpb.fbpb_fade_lo = 1.0f;
   fbpb.fbpb_fade_hi = 2.0f;
   // Not loaded (NaN): no page reads it until it is, and then its parts are worked out again.
-  EXPECT_EQ(prefiltered_parts(p, 3, unknown_sizes()), TVT_PART_DPT_POINT);
-  EXPECT_EQ(prefiltered_parts(p, 8, unknown_sizes()), TVT_PART_DPT_EXPECT | TVT_PART_DPT_SAMPLES);
+  EXPECT_EQ(prefiltered_parts(p, 3, unknown_feature_sizes()), TVT_PART_DPT_POINT);
+  EXPECT_EQ(prefiltered_parts(p, 8, unknown_feature_sizes()), TVT_PART_DPT_EXPECT | TVT_PART_DPT_SAMPLES);
   sizes[2] = 2.9f;
   // Two material texels a level-0 texel: the LOD is the mip + 1 (as pack_scene() sets it).
   fbpb.lod_bias = 1.0f;
@@ -550,7 +544,7 @@ TEST(PrefilteredParts, FollowEachLayersPatchesAndTheFeatureSizeWithTheFootprint)
 // not a validated scene's.
 TEST(SamplePairs, NameTheSampledLayersInOrderUpToTheMost) {
   gpu::TvtComposeParams p = prefiltered_params();  // the lattices below are narrow
-  const FeatureSizes sizes = unknown_sizes();      // the pairs are DPT's alone
+  const FeatureSizes sizes = unknown_feature_sizes();      // the pairs are DPT's alone
   for (int n = 1; n < 4; ++n) {
     gpu::TvtMaterial& m = p.materials[n];
     m.mode = n == 2 ? gpu::TVT_MODE_FBPB_DPT : gpu::TVT_MODE_DPT;
